@@ -1,0 +1,70 @@
+// Step 4 of the method: online dynamic time warping over the ring buffer (paper section IV-C).
+#ifndef ALONG_ROUTE_LOCALIZATION_ONLINE_DTW_H
+#define ALONG_ROUTE_LOCALIZATION_ONLINE_DTW_H
+
+#include <vector>
+
+#include "along_route_localization/cost_ring_buffer.h"
+
+namespace along_route_localization
+{
+
+/// The cheapest sequence ending at the current frame, and how it compares with the rest.
+struct SequenceMatch
+{
+  int keyframe = -1;          ///< end keyframe of the best path (current position), -1 if none
+  float cost = 0.0f;          ///< best path cost divided by the number of rows it spans
+  float second_cost = 0.0f;   ///< best cost among end keyframes farther than the exclusion radius
+  bool has_second = false;    ///< false when every candidate lies inside the exclusion radius
+  int rows = 0;               ///< rows of the ring buffer the path spans
+  std::vector<int> path;      ///< keyframe per row, oldest first (filled by OnlineDtw only)
+};
+
+struct DtwParams
+{
+  int max_step = 2;            ///< s: steps (1,0), (1,1) ... (1,s) keyframes per frame
+  /// Cost of a (1,0) stop that follows another stop. A single stop between moves is free, so any speed
+  /// from s down to half the teach speed costs nothing, while a path parked on one keyframe pays
+  /// this for every frame after the first.
+  float stop_penalty = 1.0f;
+  float skip_penalty = 1.0f;   ///< added per keyframe skipped beyond one, for (1,k), k >= 2
+  float missing_cost = 1.0f;   ///< cost of a keyframe a row did not compute (outside its band)
+  int exclusion_radius = 5;    ///< keyframes around the best end ignored for second_cost
+  /// Subtract from every keyframe its mean cost over the rows in the window before accumulating, so a
+  /// keyframe that resembles every query (a generic view) cannot carry a path by itself.
+  bool column_centering = true;
+};
+
+/// Accumulated cost, row by row from the oldest row in the buffer to the newest, in two states per
+/// keyframe: M (the last step moved) and S (the last step was a stop):
+///   M_r(i) = C_r(i) + min_{k=1..s} [ min(M_{r-1}(i-k), S_{r-1}(i-k)) + (k - 1) * skip_penalty ]
+///   S_r(i) = C_r(i) + min( M_{r-1}(i), S_{r-1}(i) + stop_penalty )
+/// (C centred per keyframe over the window when column_centering is set). The match is
+/// argmin_i min(M, S)_newest(i) over the candidate end keyframes [first_end, first_end + count).
+/// Because the accumulation spans only the K rows held, a wrong stretch falls out of the window and
+/// the path recovers; because every candidate end is scored, the match may leave [last, last + s].
+class OnlineDtw
+{
+public:
+  explicit OnlineDtw(const DtwParams& params = DtwParams());
+  void setParams(const DtwParams& params);
+  const DtwParams& params() const { return params_; }
+
+  /// Uses the newest min(rows, buffer.size()) rows. With `backtrack` the best path is returned too.
+  /// Reuses internal buffers: no allocation once they have grown to the largest band seen.
+  SequenceMatch match(const CostRingBuffer& buffer, int first_end, int count, int rows,
+                      bool backtrack = false);
+
+  /// Accumulated cost row of the last match() (per end keyframe, divided by rows), for display.
+  const std::vector<float>& lastAccumulated() const { return last_row_; }
+
+private:
+  DtwParams params_;
+  std::vector<float> prev_move_, prev_stop_, cur_move_, cur_stop_, costs_, last_row_, column_mean_;
+  // Backtracking, rows x width per state: bits 0-4 the step k, bit 7 set when it came from state S.
+  std::vector<unsigned char> move_steps_, stop_steps_;
+};
+
+}  // namespace along_route_localization
+
+#endif  // ALONG_ROUTE_LOCALIZATION_ONLINE_DTW_H

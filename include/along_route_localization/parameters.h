@@ -1,0 +1,31 @@
+// Parameters by name: the one table mapping the names users type (params.yaml, command line) to the
+// fields of PreprocessingParams and LocalizerParams. The dynamic_reconfigure .cfg files use the same names.
+#ifndef ALONG_ROUTE_LOCALIZATION_PARAMETERS_H
+#define ALONG_ROUTE_LOCALIZATION_PARAMETERS_H
+
+#include <string>
+#include <vector>
+
+#include "along_route_localization/localizer.h"
+#include "along_route_localization/preprocessing.h"
+
+namespace along_route_localization
+{
+
+/// Sets the field called `name` from its text `value`. Returns false with *error set for an unknown
+/// name or a value that does not parse (ranges are checked later by validate()).
+bool applyParameter(const std::string& name, const std::string& value, PreprocessingParams* preprocessing,
+                    LocalizerParams* localizer, std::string* error);
+
+/// Every name applyParameter() knows, for --help and error messages.
+std::vector<std::string> parameterNames();
+
+/// Reads a flat YAML mapping ("name: value" per line, '#' comments, optional single top-level section
+/// headers such as "preprocessing:" whose indented entries are read the same way) and applies every
+/// entry. Returns false with *error naming the file and line on the first problem.
+bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,
+                       std::string* error);
+
+}  // namespace along_route_localization
+
+#endif  // ALONG_ROUTE_LOCALIZATION_PARAMETERS_H

@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# Builds the package with its tests and runs them all: core gtests, rostests (real roscore, nodelet
+# manager, launch files and rosbag play), launch-file checks and the Python tool tests.
+#   scripts/run_tests.sh [WORKSPACE]     default WORKSPACE: $HOME/along_route_ws (built by scripts/setup.sh)
+# Exit status 0 only when every test passed. Real Nordland frames are read from ../shared/data/nordland
+# beside this repository when present; the tests that need them skip with a message otherwise.
+set -uo pipefail
+
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+workspace="${1:-$HOME/along_route_ws}"
+export PATH="/usr/bin:$PATH"
+[ -d "$workspace/src" ] || { echo "run_tests: no workspace at $workspace: run scripts/setup.sh first" >&2; exit 2; }
+ln -sfn "$here" "$workspace/src/along_route_localization"
+cd "$workspace"
+if [ -f /opt/ros/noetic/setup.bash ]; then set +u; source /opt/ros/noetic/setup.bash; set -u; fi
+
+# shellcheck disable=SC2086
+catkin_make -j"$(nproc)" -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 \
+  ${CATKIN_MAKE_ARGS:-} tests >"$workspace/build_tests.log" 2>&1 \
+  || { tail -n 80 "$workspace/build_tests.log"; echo "run_tests: build failed" >&2; exit 1; }
+rm -rf build/test_results
+catkin_make -j1 run_tests >"$workspace/run_tests.log" 2>&1
+set +u; source devel/setup.bash; set -u
+
+# Python tool tests (unittest); the runner prints "ran failed skipped" as its last line.
+py_log="$workspace/python_tests.log"
+( cd "$here" && /usr/bin/python3 - <<'PY'
+import sys, unittest
+result = unittest.TextTestRunner(verbosity=1).run(unittest.defaultTestLoader.discover('test/python', top_level_dir='test/python'))
+print(result.testsRun, len(result.failures) + len(result.errors), len(result.skipped))
+sys.exit(0 if result.wasSuccessful() else 1)
+PY
+) >"$py_log" 2>&1
+py_status=$?
+read -r py_ran py_failed py_skipped < <(tail -n 1 "$py_log" | grep -E '^[0-9]+ [0-9]+ [0-9]+$' || echo "0 1 0")
+
+echo "=== test results"
+catkin_test_results --verbose build/test_results | grep -vE '^$' | tail -n 40
+summary=$(catkin_test_results build/test_results | tail -n 1)
+echo "$summary"
+echo "python: ran $py_ran, failed $py_failed, skipped $py_skipped"
+if [ "$py_status" -ne 0 ]; then tail -n 40 "$py_log"; fi
+
+# catkin_test_results counts each gtest twice (the gtest XML and rosunit's wrapper): count once, from the
+# XML files written by the test programs themselves.
+read -r c_tests c_fail c_skip < <(/usr/bin/python3 - "$workspace/build/test_results" <<'PY'
+import sys, glob, xml.etree.ElementTree as ET
+tests = fail = skip = 0
+for path in glob.glob(sys.argv[1] + '/**/*.xml', recursive=True):
+    if '/MISSING-' in path or path.endswith('rosunit-') or 'rosunit-' in path.rsplit('/', 1)[-1]:
+        continue
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError:
+        fail += 1
+        continue
+    suites = [root] if root.tag == 'testsuite' else root.findall('testsuite')
+    for s in suites:
+        tests += int(s.get('tests', 0)); fail += int(s.get('failures', 0)) + int(s.get('errors', 0))
+        skip += int(s.get('skipped', 0) or s.get('disabled', 0) or 0)
+print(tests, fail, skip)
+PY
+)
+total=$((c_tests + py_ran))
+failed=$((c_fail + py_failed))
+skipped=$((c_skip + py_skipped))
+passed=$((total - failed - skipped))
+catkin_test_results build/test_results >/dev/null 2>&1
+catkin_status=$?
+echo "tests: $passed passed, $failed failed, $skipped skipped"
+if [ "$failed" -ne 0 ] || [ "$catkin_status" -ne 0 ] || [ "$py_status" -ne 0 ] || [ "$total" -eq 0 ]; then
+  exit 1
+fi
+exit 0

@@ -1,0 +1,314 @@
+#include "along_route_localization/localizer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+
+namespace along_route_localization
+{
+
+std::string toString(LocalizationStatus status)
+{
+  switch (status)
+  {
+    case LocalizationStatus::kInitializing:
+      return "initializing";
+    case LocalizationStatus::kTracking:
+      return "tracking";
+    case LocalizationStatus::kLost:
+      return "lost";
+    case LocalizationStatus::kEndOfRoute:
+      return "end_of_route";
+  }
+  return "unknown";
+}
+
+std::string toString(SequenceMethod method)
+{
+  return method == SequenceMethod::kSeqSlam ? "seqslam" : "dtw";
+}
+
+bool sequenceMethodFromString(const std::string& name, SequenceMethod* method)
+{
+  if (name == "dtw")
+    *method = SequenceMethod::kOnlineDtw;
+  else if (name == "seqslam")
+    *method = SequenceMethod::kSeqSlam;
+  else
+    return false;
+  return true;
+}
+
+std::string LocalizerParams::validate() const
+{
+  std::ostringstream e;
+  if (ring_buffer_rows < 1 || ring_buffer_rows > 1000)
+    e << "ring_buffer_rows must be in [1, 1000], got " << ring_buffer_rows;
+  else if (max_shift_px < 0 || max_shift_px > 127)
+    e << "max_shift_px must be in [0, 127], got " << max_shift_px;
+  else if (contrast_window < 1 || contrast_window > 10000)
+    e << "contrast_window must be in [1, 10000] keyframes, got " << contrast_window;
+  else if (!(contrast_min_std > 0.0f))
+    e << "contrast_min_std must be > 0, got " << contrast_min_std;
+  else if (!(contrast_clamp > 0.0f))
+    e << "contrast_clamp must be > 0, got " << contrast_clamp;
+  else if (!(min_texture_ratio >= 0.0f && min_texture_ratio <= 4.0f))
+    e << "min_texture_ratio must be in [0, 4], got " << min_texture_ratio;
+  else if (search_radius < 1)
+    e << "search_radius must be >= 1 keyframe, got " << search_radius;
+  else if (dtw.max_step < 1 || dtw.max_step > 16)
+    e << "max_step must be in [1, 16], got " << dtw.max_step;
+  else if (!(dtw.stop_penalty >= 0.0f) || !(dtw.skip_penalty >= 0.0f))
+    e << "stop_penalty and skip_penalty must be >= 0";
+  else if (dtw.exclusion_radius < 0)
+    e << "exclusion_radius must be >= 0, got " << dtw.exclusion_radius;
+  else if (seqslam.sequence_length < 1 || seqslam.sequence_length > 1000)
+    e << "seqslam sequence_length must be in [1, 1000], got " << seqslam.sequence_length;
+  else if (!(seqslam.velocity_step > 0.0f) || !(seqslam.min_velocity <= seqslam.max_velocity))
+    e << "seqslam velocities need velocity_step > 0 and min_velocity <= max_velocity";
+  else if (min_init_frames < 1)
+    e << "min_init_frames must be >= 1, got " << min_init_frames;
+  else if (!(confidence_threshold >= 0.0 && confidence_threshold <= 1.0))
+    e << "confidence_threshold must be in [0, 1], got " << confidence_threshold;
+  else if (!(confidence_scale > 0.0f))
+    e << "confidence_scale must be > 0, got " << confidence_scale;
+  else if (lost_after_frames < 1)
+    e << "lost_after_frames must be >= 1, got " << lost_after_frames;
+  else if (end_of_route_keyframes < 0)
+    e << "end_of_route_keyframes must be >= 0, got " << end_of_route_keyframes;
+  else if (!(horizontal_fov_rad > 0.0 && horizontal_fov_rad < M_PI))
+    e << "horizontal_fov_rad must be in (0, pi), got " << horizontal_fov_rad;
+  return e.str();
+}
+
+double homingAngleFromShift(double shift_px, int image_width, double horizontal_fov_rad)
+{
+  const double focal_px = 0.5 * image_width / std::tan(0.5 * horizontal_fov_rad);
+  return -std::atan(shift_px / focal_px);
+}
+
+Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams& params) : map_(std::move(map))
+{
+  if (!map_ || map_->empty())
+    throw std::invalid_argument("Localizer: the route map is empty");
+  setParams(params);
+  const size_t n = map_->size();
+  raw_costs_.resize(n);
+  shifts_.resize(n);
+  mask_.resize(n);
+}
+
+void Localizer::setParams(const LocalizerParams& params)
+{
+  std::string invalid = params.validate();
+  if (invalid.empty() && 2 * params.max_shift_px >= map_->width())
+    invalid = "max_shift_px must be below half the image width (" + std::to_string(map_->width()) + " px)";
+  if (!invalid.empty())
+    throw std::invalid_argument("invalid localizer parameters: " + invalid);
+  const bool comparators_changed = !difference_ || params.max_shift_px != params_.max_shift_px ||
+                                   params.subpixel_shift != params_.subpixel_shift ||
+                                   params.cost_function != params_.cost_function;
+  params_ = params;
+  dtw_.setParams(params_.dtw);
+  const int rows = std::max(params_.ring_buffer_rows,
+                            params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : 0);
+  ring_.resize(rows, static_cast<int>(map_->size()));
+  min_texture_energy_ = params_.min_texture_ratio * static_cast<float>(map_->params().output_gain);
+  keyframe_informative_.resize(map_->size());
+  for (size_t k = 0; k < map_->size(); ++k)
+    keyframe_informative_[k] = map_->energy(k) >= min_texture_energy_ ? 1 : 0;
+  if (comparators_changed)
+    rebuildComparators();
+}
+
+void Localizer::rebuildComparators()
+{
+  const int w = map_->width(), h = map_->height(), sky = map_->params().skyRows();
+  const int first_row = std::min(sky, h - 1);
+  difference_.reset(new ImageDifference(w, h, first_row, params_.max_shift_px, params_.subpixel_shift));
+  census_difference_.reset();
+  keyframe_census_.clear();
+  if (params_.cost_function == CostFunction::kCensus)
+  {
+    census_difference_.reset(new CensusDifference(w, h, first_row, params_.max_shift_px, params_.subpixel_shift));
+    keyframe_census_.resize(map_->size() * map_->keyframeBytes());
+    for (size_t k = 0; k < map_->size(); ++k)
+      censusTransform(map_->keyframe(k), w, h, keyframe_census_.data() + k * map_->keyframeBytes());
+    query_census_.resize(map_->keyframeBytes());
+  }
+}
+
+void Localizer::reset()
+{
+  ring_.clear();
+  status_ = LocalizationStatus::kInitializing;
+  last_match_ = -1;
+  low_confidence_frames_ = 0;
+  frames_ = 0;
+  last_path_.clear();
+}
+
+void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_informative, int first, int width)
+{
+  float* costs = raw_costs_.data() + first;
+  float* shifts = shifts_.data() + first;
+  if (census_difference_)
+  {
+    censusTransform(query, map_->width(), map_->height(), query_census_.data());
+    const size_t bytes = map_->keyframeBytes();
+    const auto run = [&](const cv::Range& range) {
+      for (int k = range.start; k < range.end; ++k)
+      {
+        const ShiftedDifference d =
+            census_difference_->compare(query_census_.data(), keyframe_census_.data() + (first + k) * bytes);
+        costs[k] = d.cost;
+        shifts[k] = d.shift_px;
+      }
+    };
+    if (params_.parallel && width >= 512)
+      cv::parallel_for_(cv::Range(0, width), run, std::max(1.0, width / 256.0));
+    else
+      run(cv::Range(0, width));
+  }
+  else
+  {
+    difference_->compareMany(query, map_->keyframe(first), width, costs, shifts, params_.parallel);
+  }
+  if (params_.energy_normalized_cost)
+  {
+    // Two unrelated textured images differ by about 1.4x their energy, a featureless one by exactly
+    // the other's energy: dividing by the sum ranks flat regions as unrelated instead of similar.
+    for (int k = 0; k < width; ++k)
+      costs[k] /= query_energy + map_->energy(first + k) + 1.0f;
+  }
+  // A featureless query or keyframe says nothing about where we are: it gets the neutral cost 0 (eq. 2
+  // output is zero-mean), so dark stretches neither attract nor repel the path.
+  for (int k = 0; k < width; ++k)
+    mask_[k] = query_informative && keyframe_informative_[first + k];
+  float* row = ring_.appendRow(first, width);
+  enhanceContrast(costs, mask_.data(), width, params_.contrast_window, params_.contrast_min_std,
+                  params_.contrast_clamp, 0.0f, row);
+  newest_first_ = first;
+  newest_width_ = width;
+}
+
+LocalizationResult Localizer::process(const cv::Mat& preprocessed)
+{
+  if (preprocessed.type() != CV_8UC1 || preprocessed.cols != map_->width() || preprocessed.rows != map_->height())
+    throw std::invalid_argument("Localizer: expected a preprocessed mono8 image of " + std::to_string(map_->width()) +
+                                "x" + std::to_string(map_->height()) + " (the map's size), got " +
+                                cv::typeToString(preprocessed.type()) + " " + std::to_string(preprocessed.cols) +
+                                "x" + std::to_string(preprocessed.rows));
+  const uint8_t* query = preprocessed.data;
+  if (!preprocessed.isContinuous())
+  {
+    preprocessed.copyTo(query_copy_);
+    query = query_copy_.data;
+  }
+  ++frames_;
+  const int n = static_cast<int>(map_->size());
+  LocalizationResult result;
+  const float query_energy = textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows());
+  result.query_informative = query_energy >= min_texture_energy_;
+
+  const bool tracking = last_match_ >= 0 && (status_ == LocalizationStatus::kTracking ||
+                                             status_ == LocalizationStatus::kEndOfRoute);
+  const bool global = params_.method == SequenceMethod::kSeqSlam || !tracking;
+  int first = 0, width = n;
+  if (!global)
+  {
+    // The robot moves forward at most max_step keyframes a frame; centre the band one step ahead.
+    const int predicted = last_match_ + 1;
+    first = std::max(0, predicted - params_.search_radius);
+    width = std::min(n, predicted + params_.search_radius + 1) - first;
+  }
+  computeRow(query, query_energy, result.query_informative, first, width);
+
+  SequenceMatch match;
+  if (params_.method == SequenceMethod::kSeqSlam)
+    match = seqSlamMatch(ring_, 0, n, params_.seqslam);
+  else
+    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, true);
+  last_path_ = match.path;
+
+  // Confidence: how much cheaper per row the best path is than the best path ending elsewhere.
+  const float reference = match.has_second ? match.second_cost : params_.dtw.missing_cost;
+  const double margin = std::max(0.0f, reference - match.cost);
+  result.confidence = 1.0 - std::exp(-margin / params_.confidence_scale);
+  result.keyframe = match.keyframe;
+
+  const bool confident = result.confidence >= params_.confidence_threshold;
+  if (!tracking)
+  {
+    if (ring_.size() >= params_.min_init_frames && confident && params_.method == SequenceMethod::kOnlineDtw)
+    {
+      status_ = LocalizationStatus::kTracking;
+      low_confidence_frames_ = 0;
+    }
+    else if (params_.method == SequenceMethod::kSeqSlam && ring_.size() >= params_.min_init_frames)
+    {
+      status_ = LocalizationStatus::kTracking;  // the baseline has no notion of being lost
+    }
+  }
+  else
+  {
+    low_confidence_frames_ = confident ? 0 : low_confidence_frames_ + 1;
+    if (low_confidence_frames_ >= params_.lost_after_frames)
+    {
+      status_ = LocalizationStatus::kLost;
+      ring_.clear();  // the rows behind a lost track describe the wrong place
+      low_confidence_frames_ = 0;
+    }
+  }
+  if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
+  {
+    last_match_ = match.keyframe;
+    status_ = match.keyframe >= n - 1 - params_.end_of_route_keyframes ? LocalizationStatus::kEndOfRoute :
+                                                                          LocalizationStatus::kTracking;
+  }
+  result.status = status_;
+  if (result.keyframe >= 0)
+  {
+    result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
+    if (result.keyframe >= newest_first_ && result.keyframe < newest_first_ + newest_width_)
+      result.shift_px = shifts_[result.keyframe];
+    result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
+  }
+  return result;
+}
+
+cv::Mat Localizer::renderDebugImage(int first_keyframe, int width, int scale) const
+{
+  const int rows = std::max(1, ring_.size());
+  width = std::max(1, width);
+  scale = std::max(1, scale);
+  cv::Mat small(rows, width, CV_8UC3, cv::Scalar(80, 0, 0));  // dark blue: not computed
+  const float clamp = params_.contrast_clamp;
+  for (int age = 0; age < ring_.size(); ++age)
+  {
+    cv::Vec3b* out = small.ptr<cv::Vec3b>(rows - 1 - age);  // newest at the bottom
+    for (int x = 0; x < width; ++x)
+    {
+      const float c = ring_.at(age, first_keyframe + x, std::nanf(""));
+      if (std::isnan(c))
+        continue;
+      const uint8_t gray = cv::saturate_cast<uint8_t>(127.5f + 127.5f * c / clamp);
+      out[x] = cv::Vec3b(gray, gray, gray);
+    }
+  }
+  for (size_t r = 0; r < last_path_.size(); ++r)
+  {
+    const int x = last_path_[r] - first_keyframe;
+    const int y = rows - static_cast<int>(last_path_.size()) + static_cast<int>(r);
+    if (x >= 0 && x < width && y >= 0)
+      small.at<cv::Vec3b>(y, x) = cv::Vec3b(0, 0, 255);
+  }
+  cv::Mat image;
+  cv::resize(small, image, cv::Size(width * scale, rows * scale), 0.0, 0.0, cv::INTER_NEAREST);
+  return image;
+}
+
+}  // namespace along_route_localization

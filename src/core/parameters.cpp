@@ -1,0 +1,206 @@
+#include "along_route_localization/parameters.h"
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <sstream>
+
+namespace along_route_localization
+{
+
+namespace
+{
+
+using Setter = std::function<bool(const std::string&, PreprocessingParams*, LocalizerParams*)>;
+
+bool parseDouble(const std::string& text, double* value)
+{
+  try
+  {
+    size_t used = 0;
+    *value = std::stod(text, &used);
+    return used == text.size();
+  }
+  catch (const std::exception&)
+  {
+    return false;
+  }
+}
+
+bool parseInt(const std::string& text, int* value)
+{
+  double d;
+  if (!parseDouble(text, &d) || d != std::floor(d) || std::abs(d) > 2e9)
+    return false;
+  *value = static_cast<int>(d);
+  return true;
+}
+
+bool parseBool(const std::string& text, bool* value)
+{
+  if (text == "true" || text == "True" || text == "1")
+    *value = true;
+  else if (text == "false" || text == "False" || text == "0")
+    *value = false;
+  else
+    return false;
+  return true;
+}
+
+template <typename T>
+Setter number(T PreprocessingParams::*field)
+{
+  return [field](const std::string& v, PreprocessingParams* p, LocalizerParams*) {
+    double d;
+    int i;
+    if (std::is_integral<T>::value)
+      return parseInt(v, &i) && ((p->*field = static_cast<T>(i)), true);
+    return parseDouble(v, &d) && ((p->*field = static_cast<T>(d)), true);
+  };
+}
+
+template <typename T, typename Getter>
+Setter localizerNumber(Getter get)
+{
+  return [get](const std::string& v, PreprocessingParams*, LocalizerParams* l) {
+    double d;
+    int i;
+    if (std::is_integral<T>::value)
+      return parseInt(v, &i) && ((get(l) = static_cast<T>(i)), true);
+    return parseDouble(v, &d) && ((get(l) = static_cast<T>(d)), true);
+  };
+}
+
+#define LOCALIZER_FIELD(type, expr) localizerNumber<type>([](LocalizerParams* l) -> type& { return l->expr; })
+
+const std::map<std::string, Setter>& setters()
+{
+  static const std::map<std::string, Setter> table = {
+    // preprocessing (step 1)
+    { "output_width", number(&PreprocessingParams::output_width) },
+    { "output_height", number(&PreprocessingParams::output_height) },
+    { "normalization",
+      [](const std::string& v, PreprocessingParams* p, LocalizerParams*) { return normalizationFromString(v, &p->normalization); } },
+    { "patch_size", number(&PreprocessingParams::patch_size) },
+    { "min_patch_std", number(&PreprocessingParams::min_patch_std) },
+    { "filter_window", number(&PreprocessingParams::filter_window) },
+    { "normalization_strength", number(&PreprocessingParams::normalization_strength) },
+    { "output_gain", number(&PreprocessingParams::output_gain) },
+    { "sky_fraction", number(&PreprocessingParams::sky_fraction) },
+    // localizer (steps 2-5)
+    { "method",
+      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return sequenceMethodFromString(v, &l->method); } },
+    { "cost_function",
+      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return costFunctionFromString(v, &l->cost_function); } },
+    { "ring_buffer_rows", LOCALIZER_FIELD(int, ring_buffer_rows) },
+    { "max_shift_px", LOCALIZER_FIELD(int, max_shift_px) },
+    { "subpixel_shift",
+      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->subpixel_shift); } },
+    { "contrast_window", LOCALIZER_FIELD(int, contrast_window) },
+    { "contrast_min_std", LOCALIZER_FIELD(float, contrast_min_std) },
+    { "contrast_clamp", LOCALIZER_FIELD(float, contrast_clamp) },
+    { "min_texture_ratio", LOCALIZER_FIELD(float, min_texture_ratio) },
+    { "energy_normalized_cost",
+      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->energy_normalized_cost); } },
+    { "search_radius", LOCALIZER_FIELD(int, search_radius) },
+    { "max_step", LOCALIZER_FIELD(int, dtw.max_step) },
+    { "stop_penalty", LOCALIZER_FIELD(float, dtw.stop_penalty) },
+    { "skip_penalty", LOCALIZER_FIELD(float, dtw.skip_penalty) },
+    { "missing_cost", LOCALIZER_FIELD(float, dtw.missing_cost) },
+    { "exclusion_radius", LOCALIZER_FIELD(int, dtw.exclusion_radius) },
+    { "column_centering",
+      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->dtw.column_centering); } },
+    { "seqslam_sequence_length", LOCALIZER_FIELD(int, seqslam.sequence_length) },
+    { "seqslam_min_velocity", LOCALIZER_FIELD(float, seqslam.min_velocity) },
+    { "seqslam_max_velocity", LOCALIZER_FIELD(float, seqslam.max_velocity) },
+    { "seqslam_velocity_step", LOCALIZER_FIELD(float, seqslam.velocity_step) },
+    { "min_init_frames", LOCALIZER_FIELD(int, min_init_frames) },
+    { "confidence_threshold", LOCALIZER_FIELD(double, confidence_threshold) },
+    { "confidence_scale", LOCALIZER_FIELD(float, confidence_scale) },
+    { "lost_after_frames", LOCALIZER_FIELD(int, lost_after_frames) },
+    { "end_of_route_keyframes", LOCALIZER_FIELD(int, end_of_route_keyframes) },
+    { "horizontal_fov_deg",
+      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) {
+        double deg;
+        return parseDouble(v, &deg) && ((l->horizontal_fov_rad = deg * M_PI / 180.0), true);
+      } },
+    { "parallel", [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->parallel); } },
+  };
+  return table;
+}
+
+std::string trim(const std::string& s)
+{
+  const size_t a = s.find_first_not_of(" \t\r\"'");
+  if (a == std::string::npos)
+    return "";
+  const size_t b = s.find_last_not_of(" \t\r\"'");
+  return s.substr(a, b - a + 1);
+}
+
+}  // namespace
+
+bool applyParameter(const std::string& name, const std::string& value, PreprocessingParams* preprocessing,
+                    LocalizerParams* localizer, std::string* error)
+{
+  const auto it = setters().find(name);
+  if (it == setters().end())
+  {
+    *error = "unknown parameter '" + name + "'";
+    return false;
+  }
+  if (!it->second(value, preprocessing, localizer))
+  {
+    *error = "parameter '" + name + "' cannot take the value '" + value + "'";
+    return false;
+  }
+  return true;
+}
+
+std::vector<std::string> parameterNames()
+{
+  std::vector<std::string> names;
+  for (const auto& entry : setters())
+    names.push_back(entry.first);
+  return names;
+}
+
+bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,
+                       std::string* error)
+{
+  std::ifstream in(path);
+  if (!in)
+  {
+    *error = "cannot open parameter file '" + path + "'";
+    return false;
+  }
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line))
+  {
+    ++number;
+    const std::string content = trim(line.substr(0, line.find('#')));
+    if (content.empty())
+      continue;
+    const size_t colon = content.find(':');
+    if (colon == std::string::npos)
+    {
+      *error = path + ":" + std::to_string(number) + ": expected 'name: value'";
+      return false;
+    }
+    const std::string name = trim(content.substr(0, colon));
+    const std::string value = trim(content.substr(colon + 1));
+    if (value.empty())
+      continue;  // a section header such as "localizer:"
+    std::string why;
+    if (!applyParameter(name, value, preprocessing, localizer, &why))
+    {
+      *error = path + ":" + std::to_string(number) + ": " + why;
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace along_route_localization

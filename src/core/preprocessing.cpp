@@ -1,0 +1,311 @@
+#include "along_route_localization/preprocessing.h"
+
+#include <cmath>
+#include <map>
+#include <sstream>
+
+#include <opencv2/imgproc.hpp>
+
+namespace along_route_localization
+{
+
+bool pixelFormatFromEncoding(const std::string& encoding, PixelFormat* format)
+{
+  static const std::map<std::string, PixelFormat> kFormats = {
+    { "mono8", PixelFormat::kMono8 },   { "8UC1", PixelFormat::kMono8 },
+    { "mono16", PixelFormat::kMono16 }, { "16UC1", PixelFormat::kMono16 },
+    { "bgr8", PixelFormat::kBgr8 },     { "rgb8", PixelFormat::kRgb8 },
+    { "bgra8", PixelFormat::kBgra8 },   { "rgba8", PixelFormat::kRgba8 },
+    { "32FC1", PixelFormat::kMono32F },
+  };
+  const auto it = kFormats.find(encoding);
+  if (it == kFormats.end())
+    return false;
+  *format = it->second;
+  return true;
+}
+
+std::string supportedEncodings()
+{
+  return "mono8, 8UC1, mono16, 16UC1, bgr8, rgb8, bgra8, rgba8, 32FC1";
+}
+
+std::string toString(NormalizationMethod method)
+{
+  switch (method)
+  {
+    case NormalizationMethod::kNone:
+      return "none";
+    case NormalizationMethod::kPatch:
+      return "patch";
+    case NormalizationMethod::kDivisive:
+      return "divisive";
+  }
+  return "unknown";
+}
+
+bool normalizationFromString(const std::string& name, NormalizationMethod* method)
+{
+  for (NormalizationMethod m : { NormalizationMethod::kNone, NormalizationMethod::kPatch, NormalizationMethod::kDivisive })
+  {
+    if (toString(m) == name)
+    {
+      *method = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+int PreprocessingParams::skyRows() const
+{
+  return static_cast<int>(std::lround(sky_fraction * output_height));
+}
+
+std::string PreprocessingParams::validate() const
+{
+  std::ostringstream error;
+  if (output_width < 8 || output_width > 1024)
+    error << "output_width must be in [8, 1024] px, got " << output_width;
+  else if (output_height < 4 || output_height > 1024)
+    error << "output_height must be in [4, 1024] px, got " << output_height;
+  else if (normalization == NormalizationMethod::kPatch &&
+           (patch_size < 2 || output_width % patch_size != 0 || output_height % patch_size != 0))
+    error << "patch_size must be >= 2 and divide output_width (" << output_width << ") and output_height ("
+          << output_height << "), got " << patch_size;
+  else if (!(min_patch_std >= 0.0 && min_patch_std <= 128.0))
+    error << "min_patch_std must be in [0, 128] gray levels, got " << min_patch_std;
+  else if (filter_window < 3 || filter_window % 2 == 0 || filter_window > 63)
+    error << "filter_window must be odd and in [3, 63] px, got " << filter_window;
+  else if (!(normalization_strength > 0.0 && normalization_strength <= 100.0))
+    error << "normalization_strength must be in (0, 100] per gray level, got " << normalization_strength;
+  else if (!(output_gain > 0.0 && output_gain <= 255.0))
+    error << "output_gain must be in (0, 255], got " << output_gain;
+  else if (!(sky_fraction >= 0.0 && sky_fraction < 1.0))
+    error << "sky_fraction must be in [0, 1), got " << sky_fraction;
+  return error.str();
+}
+
+std::string PreprocessingParams::serialize() const
+{
+  std::ostringstream out;
+  out.precision(17);
+  out << "output_width=" << output_width << ";output_height=" << output_height
+      << ";normalization=" << toString(normalization) << ";patch_size=" << patch_size
+      << ";min_patch_std=" << min_patch_std << ";filter_window=" << filter_window
+      << ";normalization_strength=" << normalization_strength << ";output_gain=" << output_gain
+      << ";sky_fraction=" << sky_fraction;
+  return out.str();
+}
+
+bool PreprocessingParams::parse(const std::string& text, PreprocessingParams* params, std::string* error)
+{
+  std::map<std::string, std::string> fields;
+  std::istringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ';'))
+  {
+    if (item.empty())
+      continue;
+    const size_t eq = item.find('=');
+    if (eq == std::string::npos || eq == 0)
+    {
+      *error = "malformed field '" + item + "' (expected key=value)";
+      return false;
+    }
+    fields[item.substr(0, eq)] = item.substr(eq + 1);
+  }
+  PreprocessingParams p;
+  const auto number = [&](const char* key, double* value) {
+    const auto it = fields.find(key);
+    if (it == fields.end())
+    {
+      *error = std::string("missing field '") + key + "'";
+      return false;
+    }
+    try
+    {
+      size_t used = 0;
+      *value = std::stod(it->second, &used);
+      if (used != it->second.size())
+        throw std::invalid_argument(it->second);
+    }
+    catch (const std::exception&)
+    {
+      *error = std::string("field '") + key + "' is not a number: '" + it->second + "'";
+      return false;
+    }
+    return true;
+  };
+  double width, height, patch, min_std, window, strength, gain, sky;
+  if (!number("output_width", &width) || !number("output_height", &height) || !number("patch_size", &patch) ||
+      !number("min_patch_std", &min_std) || !number("filter_window", &window) ||
+      !number("normalization_strength", &strength) || !number("output_gain", &gain) ||
+      !number("sky_fraction", &sky))
+    return false;
+  const auto method = fields.find("normalization");
+  if (method == fields.end() || !normalizationFromString(method->second, &p.normalization))
+  {
+    *error = "missing or unknown field 'normalization'";
+    return false;
+  }
+  p.output_width = static_cast<int>(width);
+  p.output_height = static_cast<int>(height);
+  p.patch_size = static_cast<int>(patch);
+  p.min_patch_std = min_std;
+  p.filter_window = static_cast<int>(window);
+  p.normalization_strength = strength;
+  p.output_gain = gain;
+  p.sky_fraction = sky;
+  const std::string invalid = p.validate();
+  if (!invalid.empty())
+  {
+    *error = invalid;
+    return false;
+  }
+  *params = p;
+  return true;
+}
+
+bool PreprocessingParams::operator==(const PreprocessingParams& o) const
+{
+  // Serialized text compares every field at full precision, so a map's stored parameters and a live
+  // configuration are equal exactly when they would produce the same bytes.
+  return serialize() == o.serialize();
+}
+
+void toGray(const cv::Mat& input, PixelFormat format, cv::Mat& gray)
+{
+  if (input.empty())
+    throw PreprocessingError("empty image (0 x 0)");
+  static const std::map<PixelFormat, int> kTypes = {
+    { PixelFormat::kMono8, CV_8UC1 },  { PixelFormat::kMono16, CV_16UC1 }, { PixelFormat::kBgr8, CV_8UC3 },
+    { PixelFormat::kRgb8, CV_8UC3 },   { PixelFormat::kBgra8, CV_8UC4 },   { PixelFormat::kRgba8, CV_8UC4 },
+    { PixelFormat::kMono32F, CV_32FC1 },
+  };
+  if (input.type() != kTypes.at(format))
+    throw PreprocessingError("image data of type " + cv::typeToString(input.type()) +
+                             " does not match its encoding (expected " + cv::typeToString(kTypes.at(format)) + ")");
+  switch (format)
+  {
+    case PixelFormat::kMono8:
+      gray = input;  // no copy: the caller only reads it
+      break;
+    case PixelFormat::kMono16:
+      input.convertTo(gray, CV_8U, 1.0 / 257.0);
+      break;
+    case PixelFormat::kBgr8:
+      cv::cvtColor(input, gray, cv::COLOR_BGR2GRAY);
+      break;
+    case PixelFormat::kRgb8:
+      cv::cvtColor(input, gray, cv::COLOR_RGB2GRAY);
+      break;
+    case PixelFormat::kBgra8:
+      cv::cvtColor(input, gray, cv::COLOR_BGRA2GRAY);
+      break;
+    case PixelFormat::kRgba8:
+      cv::cvtColor(input, gray, cv::COLOR_RGBA2GRAY);
+      break;
+    case PixelFormat::kMono32F:
+      if (!cv::checkRange(input, true))
+        throw PreprocessingError("float image contains NaN or infinite values");
+      input.convertTo(gray, CV_8U, 255.0);
+      break;
+  }
+}
+
+void patchNormalize(cv::Mat& image, int patch_size, double min_std, double gain)
+{
+  CV_Assert(image.type() == CV_8UC1 && image.rows % patch_size == 0 && image.cols % patch_size == 0);
+  const double area = static_cast<double>(patch_size) * patch_size;
+  for (int py = 0; py < image.rows; py += patch_size)
+  {
+    for (int px = 0; px < image.cols; px += patch_size)
+    {
+      double sum = 0.0, sum_sq = 0.0;
+      for (int y = py; y < py + patch_size; ++y)
+      {
+        const uint8_t* row = image.ptr<uint8_t>(y);
+        for (int x = px; x < px + patch_size; ++x)
+        {
+          sum += row[x];
+          sum_sq += static_cast<double>(row[x]) * row[x];
+        }
+      }
+      const double mean = sum / area;
+      const double std = std::sqrt(std::max(0.0, sum_sq / area - mean * mean));
+      const bool flat = std < min_std || std <= 0.0;
+      const double scale = flat ? 0.0 : gain / std;
+      for (int y = py; y < py + patch_size; ++y)
+      {
+        uint8_t* row = image.ptr<uint8_t>(y);
+        for (int x = px; x < px + patch_size; ++x)
+          row[x] = cv::saturate_cast<uint8_t>(128.0 + scale * (row[x] - mean));
+      }
+    }
+  }
+}
+
+void divisiveNormalize(const cv::Mat& input, cv::Mat& output, int filter_window, double strength, double gain)
+{
+  CV_Assert(input.type() == CV_8UC1 && input.data != output.data);
+  cv::Mat value, mean, mean_sq;
+  input.convertTo(value, CV_32F);
+  const cv::Size window(filter_window, filter_window);
+  cv::GaussianBlur(value, mean, window, 0.0, 0.0, cv::BORDER_REFLECT_101);
+  cv::GaussianBlur(value.mul(value), mean_sq, window, 0.0, 0.0, cv::BORDER_REFLECT_101);
+  output.create(input.size(), CV_8UC1);
+  for (int y = 0; y < input.rows; ++y)
+  {
+    const float* v = value.ptr<float>(y);
+    const float* mu = mean.ptr<float>(y);
+    const float* mu2 = mean_sq.ptr<float>(y);
+    uint8_t* out = output.ptr<uint8_t>(y);
+    for (int x = 0; x < input.cols; ++x)
+    {
+      const double sigma = std::sqrt(std::max(0.0, static_cast<double>(mu2[x]) - static_cast<double>(mu[x]) * mu[x]));
+      const double normalized = (v[x] - mu[x]) / (1.0 + strength * sigma);  // eq. 3
+      out[x] = cv::saturate_cast<uint8_t>(128.0 + gain * strength * normalized);
+    }
+  }
+}
+
+Preprocessor::Preprocessor(const PreprocessingParams& params)
+{
+  setParams(params);
+}
+
+void Preprocessor::setParams(const PreprocessingParams& params)
+{
+  const std::string invalid = params.validate();
+  if (!invalid.empty())
+    throw PreprocessingError("invalid preprocessing parameters: " + invalid);
+  params_ = params;
+}
+
+void Preprocessor::process(const cv::Mat& input, PixelFormat format, cv::Mat& output)
+{
+  toGray(input, format, gray_);
+  const cv::Size size(params_.output_width, params_.output_height);
+  if (output.size() != size || output.type() != CV_8UC1)
+    output.create(size, CV_8UC1);
+  // INTER_AREA averages all source pixels of a cell, the downsampling SeqSLAM relies on.
+  cv::Mat& target = params_.normalization == NormalizationMethod::kDivisive ? small_ : output;
+  cv::resize(gray_, target, size, 0.0, 0.0, cv::INTER_AREA);
+  switch (params_.normalization)
+  {
+    case NormalizationMethod::kNone:
+      break;
+    case NormalizationMethod::kPatch:
+      patchNormalize(output, params_.patch_size, params_.min_patch_std, params_.output_gain);
+      break;
+    case NormalizationMethod::kDivisive:
+      divisiveNormalize(small_, output, params_.filter_window, params_.normalization_strength, params_.output_gain);
+      break;
+  }
+  const int sky_rows = params_.skyRows();
+  if (sky_rows > 0)
+    output.rowRange(0, sky_rows).setTo(0);
+}
+
+}  // namespace along_route_localization

@@ -1,0 +1,547 @@
+// Repeat: localizes each preprocessed frame against the route map with the core Localizer.
+//
+// Subscribes: image_preprocessed (mono8, queue 1: the newest frame wins)
+//             <namespace of image_preprocessed>/preprocessing_params (latched, from the preprocessor):
+//             a map made with other parameters is refused
+// Publishes:  localization (along_route_localization/Localization, header copied from the image)
+//             localization_debug_image (bgr8, only while subscribed: the ring buffer with the path)
+//             /diagnostics (processing time per frame, rate, status)
+// Services:   ~load_map (along_route_localization/LoadMap)
+// Parameters: ~map (path, loaded at start), ~debug_image_scale (4), ~min_rate / ~max_rate (Hz,
+//             expected input rate for diagnostics); cfg/Localizer.cfg (dynamic, applied between
+//             frames); any other core parameter by its parameters.h name (static, e.g. ~cost_function)
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <string>
+
+#include <boost/thread/recursive_mutex.hpp>
+#include <cv_bridge/cv_bridge.h>
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <diagnostic_updater/update_functions.h>
+#include <dynamic_reconfigure/server.h>
+#include <image_transport/image_transport.h>
+#include <nodelet/nodelet.h>
+#include <sensor_msgs/image_encodings.h>
+#include <std_msgs/String.h>
+
+#include "along_route_localization/LoadMap.h"
+#include "along_route_localization/Localization.h"
+#include "along_route_localization/LocalizerConfig.h"
+#include "along_route_localization/localizer.h"
+#include "along_route_localization/parameters.h"
+#include "ros/map_io.h"
+
+namespace along_route_localization
+{
+
+class LocalizerNodelet : public nodelet::Nodelet
+{
+private:
+  void onInit() override;
+  void imageCb(const sensor_msgs::ImageConstPtr& msg);
+  void paramsCb(const std_msgs::StringConstPtr& msg);
+  void configCb(LocalizerConfig& config, uint32_t level);
+  bool loadMapCb(LoadMap::Request& req, LoadMap::Response& res);
+  bool loadMap(const std::string& path, std::string* message);
+  void useMapIfAccepted();
+  LocalizerParams staticParams(const ros::NodeHandle& private_nh);
+  LocalizerParams effectiveParams(const LocalizerParams& requested) const;
+  void publishDebugImage(const std_msgs::Header& header, int keyframe);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
+
+  // Static parameters, read in onInit.
+  int debug_image_scale_ = 4;
+  double min_rate_hz_ = 1.0, max_rate_hz_ = 1000.0;
+
+  std::shared_ptr<image_transport::ImageTransport> it_;
+  image_transport::Subscriber image_sub_;
+  image_transport::Publisher debug_pub_;
+  ros::Subscriber params_sub_;
+  ros::Publisher localization_pub_;
+  ros::ServiceServer load_map_srv_;
+  std::shared_ptr<diagnostic_updater::Updater> updater_;
+  std::shared_ptr<diagnostic_updater::FrequencyStatus> rate_status_;
+  ros::WallTimer diagnostics_timer_;
+
+  // Written by configCb, copied by imageCb; guarded by config_mutex_ (also the server's mutex).
+  boost::recursive_mutex config_mutex_;
+  std::shared_ptr<dynamic_reconfigure::Server<LocalizerConfig>> reconfigure_server_;
+  LocalizerConfig last_valid_config_;
+  LocalizerParams requested_params_;
+  bool params_changed_ = false;
+  int map_width_ = 0;  // of the loaded map, to bound max_shift_px; 0 while none
+
+  // Used only from the nodelet's single-threaded callback queue (images, parameters, the service and
+  // the diagnostics timer), so nothing here needs a lock.
+  LocalizerParams params_;  // the ones in use
+  std::shared_ptr<const RouteMap> map_;
+  std::string map_path_;
+  std::string map_error_;  // why no map is loaded
+  std::shared_ptr<const PreprocessingParams> announced_;
+  std::unique_ptr<Localizer> localizer_;  // null while there is no accepted map
+  std::string refusal_;                   // why the loaded map is not used
+  bool unchecked_warned_ = false;
+  ros::Time last_stamp_;
+  LocalizationResult last_result_;
+  uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0;
+  double time_sum_ms_ = 0.0, time_max_ms_ = 0.0, last_time_ms_ = 0.0;
+  const void* last_input_data_ = nullptr;  // for checking the zero-copy hand-over
+  ros::Time last_input_stamp_;
+};
+
+namespace
+{
+
+uint8_t toMsgStatus(LocalizationStatus status)
+{
+  switch (status)
+  {
+    case LocalizationStatus::kInitializing:
+      return Localization::STATUS_INITIALIZING;
+    case LocalizationStatus::kTracking:
+      return Localization::STATUS_TRACKING;
+    case LocalizationStatus::kLost:
+      return Localization::STATUS_LOST;
+    case LocalizationStatus::kEndOfRoute:
+      return Localization::STATUS_END_OF_ROUTE;
+  }
+  return Localization::STATUS_LOST;
+}
+
+LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams params)
+{
+  if (!sequenceMethodFromString(config.method, &params.method))
+    params.method = SequenceMethod::kOnlineDtw;
+  params.ring_buffer_rows = config.ring_buffer_rows;
+  params.dtw.max_step = config.max_step;
+  params.max_shift_px = config.max_shift_px;
+  params.contrast_window = config.contrast_window;
+  params.search_radius = config.search_radius;
+  params.confidence_threshold = config.confidence_threshold;
+  params.dtw.stop_penalty = static_cast<float>(config.stop_penalty);
+  params.dtw.skip_penalty = static_cast<float>(config.skip_penalty);
+  params.horizontal_fov_rad = config.horizontal_fov_deg * M_PI / 180.0;
+  params.lost_after_frames = config.lost_after_frames;
+  return params;
+}
+
+std::string toText(const XmlRpc::XmlRpcValue& value)
+{
+  std::ostringstream text;
+  text.precision(17);
+  switch (value.getType())
+  {
+    case XmlRpc::XmlRpcValue::TypeBoolean:
+      return static_cast<bool>(const_cast<XmlRpc::XmlRpcValue&>(value)) ? "true" : "false";
+    case XmlRpc::XmlRpcValue::TypeInt:
+      text << static_cast<int>(const_cast<XmlRpc::XmlRpcValue&>(value));
+      return text.str();
+    case XmlRpc::XmlRpcValue::TypeDouble:
+      text << static_cast<double>(const_cast<XmlRpc::XmlRpcValue&>(value));
+      return text.str();
+    case XmlRpc::XmlRpcValue::TypeString:
+      return static_cast<std::string>(const_cast<XmlRpc::XmlRpcValue&>(value));
+    default:
+      return value.toXml();
+  }
+}
+
+int largestShiftFor(int width)
+{
+  return std::max(0, (width - 1) / 2);  // leaves a compared strip of at least one column
+}
+
+}  // namespace
+
+LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh)
+{
+  // Every core parameter not in Localizer.cfg can still be set once, under the same name that
+  // params.yaml and localize_offline use (parameters.h), e.g. ~cost_function, ~min_texture_ratio.
+  static const std::set<std::string> dynamic = { "method", "ring_buffer_rows", "max_step", "max_shift_px",
+                                                 "contrast_window", "search_radius", "confidence_threshold",
+                                                 "stop_penalty", "skip_penalty", "horizontal_fov_deg",
+                                                 "lost_after_frames" };
+  LocalizerParams params;
+  PreprocessingParams ignored;  // the preprocessor's business
+  for (const std::string& name : parameterNames())
+  {
+    XmlRpc::XmlRpcValue value;
+    if (dynamic.count(name) || !private_nh.getParam(name, value))
+      continue;
+    std::string error;
+    if (!applyParameter(name, toText(value), &ignored, &params, &error))
+      NODELET_ERROR("Ignoring ~%s: %s", name.c_str(), error.c_str());
+  }
+  const std::string invalid = params.validate();
+  if (!invalid.empty())
+  {
+    NODELET_ERROR("Invalid static localizer parameters (%s); using the defaults", invalid.c_str());
+    params = LocalizerParams();
+  }
+  return params;
+}
+
+void LocalizerNodelet::onInit()
+{
+  ros::NodeHandle& nh = getNodeHandle();
+  ros::NodeHandle& private_nh = getPrivateNodeHandle();
+
+  private_nh.param("debug_image_scale", debug_image_scale_, debug_image_scale_);
+  debug_image_scale_ = std::max(1, debug_image_scale_);
+  private_nh.param("min_rate", min_rate_hz_, min_rate_hz_);
+  private_nh.param("max_rate", max_rate_hz_, max_rate_hz_);
+  requested_params_ = staticParams(private_nh);
+
+  last_valid_config_ = LocalizerConfig::__getDefault__();
+  reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<LocalizerConfig>>(config_mutex_, private_nh);
+  reconfigure_server_->setCallback([this](LocalizerConfig& config, uint32_t level) { configCb(config, level); });
+  {
+    std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
+    params_ = requested_params_;
+    params_changed_ = false;
+  }
+
+  std::string path;
+  private_nh.param("map", path, std::string());
+  if (path.empty())
+  {
+    map_error_ = "no map loaded: set ~map or call ~load_map";
+    NODELET_WARN("No ~map parameter; waiting for a map through %s", private_nh.resolveName("load_map").c_str());
+  }
+  else
+  {
+    std::string message;
+    loadMap(path, &message);
+  }
+
+  updater_ = std::make_shared<diagnostic_updater::Updater>(nh, private_nh, getName());
+  updater_->setHardwareID("none");
+  rate_status_ = std::make_shared<diagnostic_updater::FrequencyStatus>(
+      diagnostic_updater::FrequencyStatusParam(&min_rate_hz_, &max_rate_hz_), "localization rate");
+  updater_->add(*rate_status_);
+  updater_->add("localization", this, &LocalizerNodelet::diagnose);
+  diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(0.25), [this](const ros::WallTimerEvent&) {
+    updater_->update();
+  });
+
+  localization_pub_ = nh.advertise<Localization>("localization", 10);
+  it_ = std::make_shared<image_transport::ImageTransport>(nh);
+  debug_pub_ = it_->advertise("localization_debug_image", 1);
+  load_map_srv_ = private_nh.advertiseService("load_map", &LocalizerNodelet::loadMapCb, this);
+  const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
+  params_sub_ = nh.subscribe(params_topic, 1, &LocalizerNodelet::paramsCb, this);
+  const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh);
+  image_sub_ = it_->subscribe("image_preprocessed", 1, &LocalizerNodelet::imageCb, this, hints);
+  NODELET_INFO("Localizing %s against %s; preprocessing parameters checked against %s",
+               nh.resolveName("image_preprocessed").c_str(), map_ ? map_path_.c_str() : "(no map yet)",
+               params_topic.c_str());
+}
+
+void LocalizerNodelet::configCb(LocalizerConfig& config, uint32_t /*level*/)
+{
+  // Corrections, so the panel shows the values in use.
+  if (config.search_radius < config.max_step)
+    config.search_radius = config.max_step;
+  if (map_width_ > 0 && config.max_shift_px > largestShiftFor(map_width_))
+  {
+    NODELET_WARN("max_shift_px %d leaves nothing to compare in %d px wide images; using %d", config.max_shift_px,
+                 map_width_, largestShiftFor(map_width_));
+    config.max_shift_px = largestShiftFor(map_width_);
+  }
+  const LocalizerParams params = toParams(config, requested_params_);
+  const std::string invalid = params.validate();
+  if (!invalid.empty())
+  {
+    NODELET_ERROR("Rejected localizer parameters: %s; keeping the previous ones", invalid.c_str());
+    config = last_valid_config_;
+    return;
+  }
+  last_valid_config_ = config;
+  requested_params_ = params;
+  params_changed_ = true;
+}
+
+LocalizerParams LocalizerNodelet::effectiveParams(const LocalizerParams& requested) const
+{
+  LocalizerParams params = requested;
+  if (map_ && params.max_shift_px > largestShiftFor(map_->width()))
+    params.max_shift_px = largestShiftFor(map_->width());
+  return params;
+}
+
+bool LocalizerNodelet::loadMapCb(LoadMap::Request& req, LoadMap::Response& res)
+{
+  std::string message;
+  res.success = loadMap(req.path, &message);
+  res.message = message;
+  res.keyframes = res.success ? static_cast<uint32_t>(map_->size()) : 0;
+  return true;
+}
+
+bool LocalizerNodelet::loadMap(const std::string& path, std::string* message)
+{
+  std::shared_ptr<const RouteMap> map;
+  try
+  {
+    map = std::make_shared<const RouteMap>(readMap(path));
+  }
+  catch (const MapError& e)
+  {
+    *message = e.what();
+    if (!map_)
+      map_error_ = *message;
+    NODELET_ERROR("%s%s", message->c_str(), map_ ? "; keeping the current map" : "; waiting for ~load_map");
+    return false;
+  }
+  if (announced_ && *announced_ != map->params())
+  {
+    *message = "map " + path + " was made with other preprocessing parameters than the preprocessor's (" +
+               preprocessingDifference(map->params(), *announced_) + ", map vs preprocessor); refused";
+    if (!map_)
+      map_error_ = *message;
+    NODELET_ERROR("%s", message->c_str());
+    return false;
+  }
+  map_ = map;
+  map_path_ = path;
+  map_error_.clear();
+  {
+    std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
+    map_width_ = map_->width();
+  }
+  localizer_.reset();
+  useMapIfAccepted();
+  if (!localizer_)
+  {
+    *message = refusal_;
+    return false;
+  }
+  last_stamp_ = ros::Time();
+  *message = "loaded " + path + ": " + std::to_string(map_->size()) + " keyframes of " +
+             std::to_string(map_->width()) + "x" + std::to_string(map_->height()) + " px";
+  NODELET_INFO("%s", message->c_str());
+  return true;
+}
+
+void LocalizerNodelet::useMapIfAccepted()
+{
+  if (!map_)
+    return;
+  if (announced_ && *announced_ != map_->params())
+  {
+    const std::string refusal = "map " + map_path_ + " was made with other preprocessing parameters than the " +
+                                "preprocessor's (" + preprocessingDifference(map_->params(), *announced_) +
+                                ", map vs preprocessor); refused until they match or another map is loaded";
+    if (localizer_ || refusal != refusal_)
+      NODELET_ERROR("%s", refusal.c_str());
+    localizer_.reset();
+    refusal_ = refusal;
+    return;
+  }
+  if (localizer_)
+    return;
+  try
+  {
+    localizer_.reset(new Localizer(map_, effectiveParams(params_)));
+    if (!refusal_.empty())
+      NODELET_INFO("Preprocessing parameters match map %s again; localizing", map_path_.c_str());
+    refusal_.clear();
+  }
+  catch (const std::exception& e)
+  {
+    refusal_ = std::string("cannot localize against map ") + map_path_ + ": " + e.what();
+    NODELET_ERROR("%s", refusal_.c_str());
+  }
+}
+
+void LocalizerNodelet::paramsCb(const std_msgs::StringConstPtr& msg)
+{
+  auto params = std::make_shared<PreprocessingParams>();
+  std::string error;
+  if (!PreprocessingParams::parse(msg->data, params.get(), &error))
+  {
+    NODELET_ERROR("Ignoring invalid preprocessing parameters '%s': %s", msg->data.c_str(), error.c_str());
+    return;
+  }
+  announced_ = params;
+  useMapIfAccepted();
+}
+
+void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
+{
+  bool changed = false;
+  LocalizerParams requested;
+  {
+    std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
+    if (params_changed_)
+    {
+      requested = requested_params_;
+      params_changed_ = false;
+      changed = true;
+    }
+  }
+  if (changed)
+  {
+    params_ = requested;
+    if (localizer_)
+    {
+      try
+      {
+        localizer_->setParams(effectiveParams(params_));  // between frames; keeps the current match
+      }
+      catch (const std::exception& e)
+      {
+        NODELET_ERROR("Localizer rejected the new parameters: %s; keeping the previous ones", e.what());
+      }
+    }
+  }
+
+  if (!map_)
+  {
+    NODELET_WARN_THROTTLE(10.0, "Dropping frames: %s", map_error_.c_str());
+    return;
+  }
+  if (!localizer_)
+  {
+    NODELET_ERROR_THROTTLE(5.0, "Dropping frames: %s", refusal_.c_str());
+    return;
+  }
+  if (!announced_ && !unchecked_warned_)
+  {
+    NODELET_WARN("No preprocessing parameters announced on %s: cannot check that map %s matches its input",
+                 params_sub_.getTopic().c_str(), map_path_.c_str());
+    unchecked_warned_ = true;
+  }
+  if ((msg->encoding != sensor_msgs::image_encodings::MONO8 &&
+       msg->encoding != sensor_msgs::image_encodings::TYPE_8UC1) ||
+      static_cast<int>(msg->width) != map_->width() || static_cast<int>(msg->height) != map_->height() ||
+      msg->step < msg->width || msg->data.size() < static_cast<size_t>(msg->step) * msg->height)
+  {
+    NODELET_ERROR_THROTTLE(5.0, "Dropping a %ux%u '%s' frame: map %s holds %dx%d mono8 keyframes", msg->width,
+                           msg->height, msg->encoding.c_str(), map_path_.c_str(), map_->width(), map_->height());
+    return;
+  }
+  if (!last_stamp_.isZero() && msg->header.stamp < last_stamp_)
+  {
+    NODELET_WARN("Time went backwards (%.3f s -> %.3f s; a looping bag?): restarting the localization",
+                 last_stamp_.toSec(), msg->header.stamp.toSec());
+    localizer_->reset();
+    ++resets_;
+  }
+  last_stamp_ = msg->header.stamp;
+
+  const cv_bridge::CvImageConstPtr input = cv_bridge::toCvShare(msg);
+  const auto start = std::chrono::steady_clock::now();
+  LocalizationResult result;
+  try
+  {
+    result = localizer_->process(input->image);
+  }
+  catch (const std::exception& e)
+  {
+    NODELET_ERROR_THROTTLE(5.0, "Localizer failed on a frame: %s", e.what());
+    return;
+  }
+  const double elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+
+  const LocalizationPtr out = boost::make_shared<Localization>();
+  out->header = msg->header;
+  out->status = toMsgStatus(result.status);
+  out->keyframe = result.keyframe;
+  if (result.keyframe_stamp_ns > 0)
+    out->keyframe_stamp.fromNSec(static_cast<uint64_t>(result.keyframe_stamp_ns));
+  out->confidence = static_cast<float>(result.confidence);
+  out->homing_angle = static_cast<float>(result.homing_angle_rad);
+  out->shift = static_cast<float>(result.shift_px);
+  out->query_informative = result.query_informative;
+  localization_pub_.publish(out);
+
+  if (debug_pub_.getNumSubscribers() > 0)
+    publishDebugImage(msg->header, result.keyframe);
+
+  last_result_ = result;
+  ++frames_;
+  ++frames_in_period_;
+  time_sum_ms_ += elapsed_ms;
+  time_max_ms_ = std::max(time_max_ms_, elapsed_ms);
+  last_time_ms_ = elapsed_ms;
+  last_input_data_ = input->image.data;
+  last_input_stamp_ = msg->header.stamp;
+  rate_status_->tick();
+}
+
+void LocalizerNodelet::publishDebugImage(const std_msgs::Header& header, int keyframe)
+{
+  const int keyframes = static_cast<int>(map_->size());
+  const int width = std::min(keyframes, 2 * std::max(params_.search_radius, 1) + 1);
+  const int center = keyframe >= 0 ? keyframe : 0;
+  const int first = std::max(0, std::min(center - width / 2, keyframes - width));
+  cv::Mat rendered;
+  try
+  {
+    rendered = localizer_->renderDebugImage(first, width, debug_image_scale_);
+  }
+  catch (const std::exception& e)
+  {
+    NODELET_ERROR_THROTTLE(5.0, "Cannot render the debug image: %s", e.what());
+    return;
+  }
+  if (rendered.empty() || rendered.type() != CV_8UC3)
+    return;
+  const sensor_msgs::ImagePtr out = boost::make_shared<sensor_msgs::Image>();
+  out->header = header;
+  out->encoding = sensor_msgs::image_encodings::BGR8;
+  out->width = static_cast<uint32_t>(rendered.cols);
+  out->height = static_cast<uint32_t>(rendered.rows);
+  out->step = out->width * 3;
+  out->data.resize(static_cast<size_t>(out->step) * out->height);
+  cv::Mat wrapped(rendered.rows, rendered.cols, CV_8UC3, &out->data[0], out->step);
+  rendered.copyTo(wrapped);
+  debug_pub_.publish(out);
+}
+
+void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
+{
+  if (!map_)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, map_error_);
+  else if (!localizer_)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, refusal_);
+  else if (frames_ == 0)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for images");
+  else if (last_result_.status == LocalizationStatus::kLost)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "lost: searching the whole map");
+  else
+    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, toString(last_result_.status));
+
+  stat.add("map", map_ ? map_path_ : std::string("(none)"));
+  stat.add("keyframes", map_ ? map_->size() : 0);
+  stat.add("frames processed", frames_);
+  stat.add("resets (time went backwards)", resets_);
+  stat.add("status", toString(last_result_.status));
+  stat.add("keyframe", last_result_.keyframe);
+  stat.add("confidence", last_result_.confidence);
+  stat.add("homing angle (rad)", last_result_.homing_angle_rad);
+  stat.addf("processing time last (ms)", "%.3f", last_time_ms_);
+  stat.addf("processing time mean (ms)", "%.3f", frames_in_period_ > 0 ? time_sum_ms_ / frames_in_period_ : 0.0);
+  stat.addf("processing time max (ms)", "%.3f", time_max_ms_);
+  // The data pointer of the last frame as the core saw it: equal to the address of the buffer the
+  // preprocessor filled when the hand-over in one manager copies nothing.
+  char input[96];
+  std::snprintf(input, sizeof(input), "%p @ %u.%09u", last_input_data_, last_input_stamp_.sec,
+                last_input_stamp_.nsec);
+  stat.add("input buffer", std::string(input));
+  frames_in_period_ = 0;
+  time_sum_ms_ = 0.0;
+  time_max_ms_ = 0.0;
+}
+
+}  // namespace along_route_localization
+
+#include <pluginlib/class_list_macros.hpp>
+PLUGINLIB_EXPORT_CLASS(along_route_localization::LocalizerNodelet, nodelet::Nodelet)

@@ -1,0 +1,449 @@
+// Teach: picks keyframes from the preprocessed images and writes the route map (map_io.h) as it goes.
+//
+// Subscribes: image_preprocessed (mono8)
+//             <namespace of image_preprocessed>/preprocessing_params (latched, from the preprocessor):
+//             stored in the map, so the map records exactly what made its keyframes
+//             odom (nav_msgs/Odometry, optional: only the min_distance policy reads it)
+// Services:   ~start, ~pause, ~finish (std_srvs/Trigger)
+// Parameters: ~map (path of the map file), ~autostart (true), ~flush_period (1.0 s),
+//             ~max_queue (1000 keyframes waiting for the writer), ~queue_size (100);
+//             keyframe policy in cfg/MapRecorder.cfg (dynamic)
+//
+// Disk I/O happens only in the writer thread. It flushes at least every flush_period, and each flush
+// leaves a complete map under the final name, so a killed teach keeps everything up to the last
+// flush. ~finish, unloading the nodelet and SIGINT to the manager all close the map.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include <boost/thread/recursive_mutex.hpp>
+#include <cv_bridge/cv_bridge.h>
+#include <dynamic_reconfigure/server.h>
+#include <image_transport/image_transport.h>
+#include <nav_msgs/Odometry.h>
+#include <nodelet/nodelet.h>
+#include <sensor_msgs/image_encodings.h>
+#include <std_msgs/String.h>
+#include <std_srvs/Trigger.h>
+
+#include "along_route_localization/MapRecorderConfig.h"
+#include "along_route_localization/preprocessing.h"
+#include "ros/map_io.h"
+
+namespace along_route_localization
+{
+
+class MapRecorderNodelet : public nodelet::Nodelet
+{
+public:
+  ~MapRecorderNodelet() override;
+
+private:
+  enum class State
+  {
+    kIdle,
+    kRecording,
+    kPaused,
+    kFinished
+  };
+
+  /// A frame becomes a keyframe when every enabled criterion holds; 0 disables one.
+  struct KeyframePolicy
+  {
+    int every_nth = 1;
+    double min_time_gap_s = 0.0;
+    double min_appearance_change = 0.0;  // mean |byte difference| to the last keyframe
+    double min_distance_m = 0.0;
+  };
+
+  void onInit() override;
+  void imageCb(const sensor_msgs::ImageConstPtr& msg);
+  void paramsCb(const std_msgs::StringConstPtr& msg);
+  void odomCb(const nav_msgs::OdometryConstPtr& msg);
+  void configCb(MapRecorderConfig& config, uint32_t level);
+  bool startCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool pauseCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool finishCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool isKeyframe(const sensor_msgs::ImageConstPtr& msg, const KeyframePolicy& policy);
+  void writerLoop();
+
+  // Static parameters, read in onInit.
+  std::string map_path_;
+  double flush_period_s_ = 1.0;
+  size_t max_queue_ = 1000;
+
+  std::shared_ptr<image_transport::ImageTransport> it_;
+  image_transport::Subscriber image_sub_;
+  ros::Subscriber params_sub_, odom_sub_;
+  ros::ServiceServer start_srv_, pause_srv_, finish_srv_;
+
+  // Keyframe policy: written by configCb, copied by imageCb; guarded by config_mutex_.
+  boost::recursive_mutex config_mutex_;
+  std::shared_ptr<dynamic_reconfigure::Server<MapRecorderConfig>> reconfigure_server_;
+  KeyframePolicy policy_;
+
+  // Used only from the nodelet's single-threaded callback queue (image, params, odom, services).
+  std::shared_ptr<const PreprocessingParams> announced_params_;
+  sensor_msgs::ImageConstPtr last_keyframe_;
+  int frames_since_keyframe_ = 0;
+  double distance_since_keyframe_m_ = 0.0;
+  bool have_odom_ = false;
+  double last_x_ = 0.0, last_y_ = 0.0, last_z_ = 0.0;
+
+  // Shared between the callbacks and the writer thread; guarded by queue_mutex_.
+  std::mutex queue_mutex_;
+  std::condition_variable writer_cv_;    // wakes the writer: keyframes, finish, stop
+  std::condition_variable finished_cv_;  // wakes ~finish: the writer closed the map
+  State state_ = State::kIdle;
+  std::deque<sensor_msgs::ImageConstPtr> queue_;
+  std::shared_ptr<const PreprocessingParams> recording_params_;  // of the map being written
+  size_t keyframes_queued_ = 0;
+  size_t keyframes_written_ = 0;
+  bool finish_requested_ = false;
+  bool finish_done_ = false;
+  bool stop_writer_ = false;
+  std::string writer_error_;
+  std::string finish_message_;
+
+  std::thread writer_thread_;
+};
+
+void MapRecorderNodelet::onInit()
+{
+  ros::NodeHandle& nh = getNodeHandle();
+  ros::NodeHandle& private_nh = getPrivateNodeHandle();
+
+  private_nh.param("map", map_path_, std::string());
+  bool autostart = true;
+  private_nh.param("autostart", autostart, autostart);
+  private_nh.param("flush_period", flush_period_s_, flush_period_s_);
+  if (!(flush_period_s_ > 0.0))
+  {
+    NODELET_WARN("~flush_period must be > 0 s; using 1.0");
+    flush_period_s_ = 1.0;
+  }
+  int max_queue = static_cast<int>(max_queue_);
+  private_nh.param("max_queue", max_queue, max_queue);
+  max_queue_ = static_cast<size_t>(std::max(1, max_queue));
+  int queue_size = 100;
+  private_nh.param("queue_size", queue_size, queue_size);
+
+  reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<MapRecorderConfig>>(config_mutex_, private_nh);
+  reconfigure_server_->setCallback([this](MapRecorderConfig& config, uint32_t level) { configCb(config, level); });
+
+  if (map_path_.empty())
+  {
+    NODELET_ERROR("No ~map parameter: set it to the path of the map file to record; nothing will be recorded");
+    return;
+  }
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    state_ = autostart ? State::kRecording : State::kIdle;
+  }
+  writer_thread_ = std::thread(&MapRecorderNodelet::writerLoop, this);
+
+  start_srv_ = private_nh.advertiseService("start", &MapRecorderNodelet::startCb, this);
+  pause_srv_ = private_nh.advertiseService("pause", &MapRecorderNodelet::pauseCb, this);
+  finish_srv_ = private_nh.advertiseService("finish", &MapRecorderNodelet::finishCb, this);
+
+  const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
+  params_sub_ = nh.subscribe(params_topic, 1, &MapRecorderNodelet::paramsCb, this);
+  odom_sub_ = nh.subscribe("odom", 10, &MapRecorderNodelet::odomCb, this);
+  it_ = std::make_shared<image_transport::ImageTransport>(nh);
+  const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh);
+  image_sub_ = it_->subscribe("image_preprocessed", static_cast<uint32_t>(std::max(1, queue_size)),
+                              &MapRecorderNodelet::imageCb, this, hints);
+  NODELET_INFO("Recording %s into map %s (%s); preprocessing parameters from %s",
+               nh.resolveName("image_preprocessed").c_str(), map_path_.c_str(),
+               autostart ? "started" : "call ~start to begin", params_topic.c_str());
+}
+
+MapRecorderNodelet::~MapRecorderNodelet()
+{
+  if (!writer_thread_.joinable())
+    return;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    stop_writer_ = true;
+  }
+  writer_cv_.notify_all();
+  writer_thread_.join();
+  NODELET_INFO("%s", finish_message_.c_str());
+}
+
+void MapRecorderNodelet::configCb(MapRecorderConfig& config, uint32_t /*level*/)
+{
+  policy_.every_nth = config.every_nth;
+  policy_.min_time_gap_s = config.min_time_gap;
+  policy_.min_appearance_change = config.min_appearance_change;
+  policy_.min_distance_m = config.min_distance;
+}
+
+void MapRecorderNodelet::paramsCb(const std_msgs::StringConstPtr& msg)
+{
+  auto params = std::make_shared<PreprocessingParams>();
+  std::string error;
+  if (!PreprocessingParams::parse(msg->data, params.get(), &error))
+  {
+    NODELET_ERROR("Ignoring invalid preprocessing parameters '%s': %s", msg->data.c_str(), error.c_str());
+    return;
+  }
+  announced_params_ = params;
+}
+
+void MapRecorderNodelet::odomCb(const nav_msgs::OdometryConstPtr& msg)
+{
+  const geometry_msgs::Point& p = msg->pose.pose.position;
+  if (have_odom_)
+    distance_since_keyframe_m_ += std::sqrt((p.x - last_x_) * (p.x - last_x_) + (p.y - last_y_) * (p.y - last_y_) +
+                                            (p.z - last_z_) * (p.z - last_z_));
+  last_x_ = p.x;
+  last_y_ = p.y;
+  last_z_ = p.z;
+  have_odom_ = true;
+}
+
+bool MapRecorderNodelet::isKeyframe(const sensor_msgs::ImageConstPtr& msg, const KeyframePolicy& policy)
+{
+  ++frames_since_keyframe_;
+  if (!last_keyframe_)
+    return true;
+  if (frames_since_keyframe_ < policy.every_nth)
+    return false;
+  if (policy.min_time_gap_s > 0.0)
+  {
+    const double gap_s = (msg->header.stamp - last_keyframe_->header.stamp).toSec();
+    if (gap_s >= 0.0 && gap_s < policy.min_time_gap_s)  // a negative gap: time jumped back, take it
+      return false;
+  }
+  if (policy.min_distance_m > 0.0)
+  {
+    if (!have_odom_)
+    {
+      NODELET_WARN_THROTTLE(10.0, "min_distance is %.2f m but no odometry arrived on %s: no keyframes are taken",
+                            policy.min_distance_m, odom_sub_.getTopic().c_str());
+      return false;
+    }
+    if (distance_since_keyframe_m_ < policy.min_distance_m)
+      return false;
+  }
+  if (policy.min_appearance_change > 0.0)
+  {
+    const cv::Mat current = cv_bridge::toCvShare(msg)->image;
+    const cv::Mat last = cv_bridge::toCvShare(last_keyframe_)->image;
+    const double mean_change = cv::norm(current, last, cv::NORM_L1) / static_cast<double>(current.total());
+    if (mean_change < policy.min_appearance_change)
+      return false;
+  }
+  return true;
+}
+
+void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
+{
+  std::shared_ptr<const PreprocessingParams> recording_params;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    if (state_ != State::kRecording)
+      return;
+    if (!writer_error_.empty())
+    {
+      NODELET_ERROR_THROTTLE(5.0, "Not recording: %s", writer_error_.c_str());
+      return;
+    }
+    recording_params = recording_params_;
+  }
+  if (!announced_params_)
+  {
+    NODELET_WARN_THROTTLE(5.0, "Waiting for the preprocessing parameters on %s (is the preprocessor running?); "
+                               "frames are not recorded until they arrive", params_sub_.getTopic().c_str());
+    return;
+  }
+  if (recording_params && *recording_params != *announced_params_)
+  {
+    NODELET_ERROR_THROTTLE(5.0, "The preprocessing parameters changed during the teach (%s); a map holds one set, "
+                                "so these frames are not recorded. Change them back, or ~finish and record "
+                                "another map",
+                           preprocessingDifference(*recording_params, *announced_params_).c_str());
+    return;
+  }
+  if (msg->encoding != sensor_msgs::image_encodings::MONO8 ||
+      static_cast<int>(msg->width) != announced_params_->output_width ||
+      static_cast<int>(msg->height) != announced_params_->output_height ||
+      msg->step < msg->width || msg->data.size() < static_cast<size_t>(msg->step) * msg->height)
+  {
+    NODELET_ERROR_THROTTLE(5.0, "Dropping a %ux%u '%s' frame: the preprocessing parameters make %dx%d mono8",
+                           msg->width, msg->height, msg->encoding.c_str(), announced_params_->output_width,
+                           announced_params_->output_height);
+    return;
+  }
+
+  KeyframePolicy policy;
+  {
+    std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
+    policy = policy_;
+  }
+  if (!isKeyframe(msg, policy))
+    return;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    if (queue_.size() >= max_queue_)
+    {
+      NODELET_ERROR_THROTTLE(5.0, "The map writer is %zu keyframes behind (disk too slow?); dropping keyframes",
+                             queue_.size());
+      return;
+    }
+    if (!recording_params_)
+      recording_params_ = announced_params_;
+    queue_.push_back(msg);
+    ++keyframes_queued_;
+  }
+  writer_cv_.notify_one();
+  last_keyframe_ = msg;
+  frames_since_keyframe_ = 0;
+  distance_since_keyframe_m_ = 0.0;
+}
+
+bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::Trigger::Response& res)
+{
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  if (map_path_.empty())
+  {
+    res.success = false;
+    res.message = "no ~map parameter: nothing can be recorded";
+  }
+  else if (state_ == State::kFinished)
+  {
+    res.success = false;
+    res.message = "the recording of " + map_path_ + " is finished; load the nodelet again to record another map";
+  }
+  else
+  {
+    res.success = true;
+    res.message = std::string(state_ == State::kPaused ? "resumed" : "started") + " recording " + map_path_;
+    state_ = State::kRecording;
+  }
+  NODELET_INFO("~start: %s", res.message.c_str());
+  return true;
+}
+
+bool MapRecorderNodelet::pauseCb(std_srvs::Trigger::Request& /*req*/, std_srvs::Trigger::Response& res)
+{
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  res.success = state_ == State::kRecording;
+  if (res.success)
+  {
+    state_ = State::kPaused;
+    res.message = "paused after " + std::to_string(keyframes_queued_) + " keyframes";
+  }
+  else
+  {
+    res.message = "not recording";
+  }
+  NODELET_INFO("~pause: %s", res.message.c_str());
+  return true;
+}
+
+bool MapRecorderNodelet::finishCb(std_srvs::Trigger::Request& /*req*/, std_srvs::Trigger::Response& res)
+{
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  if (map_path_.empty())
+  {
+    res.success = false;
+    res.message = "no ~map parameter: nothing was recorded";
+    return true;
+  }
+  if (state_ != State::kFinished)
+  {
+    state_ = State::kFinished;
+    finish_requested_ = true;
+    writer_cv_.notify_all();
+  }
+  // Waits for the writer thread (a flush takes milliseconds), bounded in case the disk hangs.
+  if (!finished_cv_.wait_for(lock, std::chrono::seconds(30), [this] { return finish_done_; }))
+  {
+    res.success = false;
+    res.message = "the map writer did not finish within 30 s; " + map_path_ + " holds the last flush";
+  }
+  else
+  {
+    res.success = writer_error_.empty() && keyframes_written_ > 0;
+    res.message = finish_message_;
+  }
+  NODELET_INFO("~finish: %s", res.message.c_str());
+  return true;
+}
+
+void MapRecorderNodelet::writerLoop()
+{
+  std::unique_ptr<MapWriter> writer;
+  auto next_flush = std::chrono::steady_clock::now() + std::chrono::duration<double>(flush_period_s_);
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  while (true)
+  {
+    writer_cv_.wait_until(lock, next_flush,
+                          [this] { return stop_writer_ || finish_requested_ || !queue_.empty(); });
+    std::deque<sensor_msgs::ImageConstPtr> batch;
+    batch.swap(queue_);
+    const bool stop = stop_writer_;
+    const bool finish = finish_requested_ || stop_writer_;
+    const std::shared_ptr<const PreprocessingParams> params = recording_params_;
+    lock.unlock();
+
+    std::string error;
+    try
+    {
+      if (!batch.empty() && !writer)
+        writer.reset(new MapWriter(map_path_, *params, "recorder=" + getName()));
+      for (const sensor_msgs::ImageConstPtr& keyframe : batch)
+        writer->add(keyframe);
+      const auto now = std::chrono::steady_clock::now();
+      if (writer && (finish || now >= next_flush))
+      {
+        if (finish)
+          writer->close();
+        else
+          writer->flush();
+      }
+      if (now >= next_flush)
+        next_flush = now + std::chrono::duration<double>(flush_period_s_);
+    }
+    catch (const MapError& e)
+    {
+      error = e.what();
+      NODELET_ERROR("Map %s: %s", map_path_.c_str(), error.c_str());
+    }
+
+    lock.lock();
+    if (writer)
+      keyframes_written_ = writer->written();
+    if (!error.empty())
+      writer_error_ = error;
+    if (finish && !finish_done_)
+    {
+      if (!writer_error_.empty())
+        finish_message_ = "map " + map_path_ + " failed: " + writer_error_;
+      else if (keyframes_written_ == 0)
+        finish_message_ = "no keyframes were recorded; no map written to " + map_path_;
+      else
+        finish_message_ = "map " + map_path_ + " holds " + std::to_string(keyframes_written_) + " keyframes";
+      finish_requested_ = false;
+      finish_done_ = true;
+      state_ = State::kFinished;
+      writer.reset();
+      finished_cv_.notify_all();
+    }
+    if (stop)
+      break;
+  }
+}
+
+}  // namespace along_route_localization
+
+#include <pluginlib/class_list_macros.hpp>
+PLUGINLIB_EXPORT_CLASS(along_route_localization::MapRecorderNodelet, nodelet::Nodelet)

@@ -1,0 +1,253 @@
+// Step 1 of the method as a nodelet: camera image in, small normalized mono8 image out, computed
+// straight into the outgoing message.
+//
+// Subscribes: image (sensor_msgs/Image via image_transport; any encoding the core accepts)
+// Publishes:  image_preprocessed (mono8, header copied from the input)
+//             <namespace of image_preprocessed>/preprocessing_params (std_msgs/String, latched):
+//             the parameters that make the images, published right before the first image made
+//             with a new value (see map_io.h)
+// Parameters: cfg/Preprocessor.cfg (dynamic); ~queue_size (static, default 5)
+#include <algorithm>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include <boost/thread/recursive_mutex.hpp>
+#include <cv_bridge/cv_bridge.h>
+#include <dynamic_reconfigure/server.h>
+#include <image_transport/image_transport.h>
+#include <nodelet/nodelet.h>
+#include <sensor_msgs/image_encodings.h>
+#include <std_msgs/String.h>
+
+#include "along_route_localization/PreprocessorConfig.h"
+#include "along_route_localization/preprocessing.h"
+#include "ros/map_io.h"
+
+namespace along_route_localization
+{
+
+class PreprocessorNodelet : public nodelet::Nodelet
+{
+private:
+  void onInit() override;
+  void connectCb();
+  void imageCb(const sensor_msgs::ImageConstPtr& msg);
+  void configCb(PreprocessorConfig& config, uint32_t level);
+  bool checkInput(const sensor_msgs::Image& msg, PixelFormat* format);
+  void announce(const PreprocessingParams& params);
+
+  std::shared_ptr<image_transport::ImageTransport> it_;
+  int queue_size_ = 5;
+
+  // Lazy subscription: subscribed only while someone listens to image_preprocessed.
+  std::mutex connect_mutex_;
+  image_transport::Subscriber sub_;
+  image_transport::Publisher pub_;
+  ros::Publisher params_pub_;
+
+  // Written by configCb, read by imageCb; guarded by config_mutex_ (also the server's mutex).
+  boost::recursive_mutex config_mutex_;
+  std::shared_ptr<dynamic_reconfigure::Server<PreprocessorConfig>> reconfigure_server_;
+  PreprocessorConfig last_valid_config_;
+  PreprocessingParams requested_params_;
+
+  // Used only from the nodelet's single-threaded callback queue (imageCb) after onInit.
+  Preprocessor preprocessor_;
+  bool in_place_warned_ = false;
+};
+
+namespace
+{
+
+PreprocessingParams toParams(const PreprocessorConfig& config)
+{
+  PreprocessingParams params;
+  params.output_width = config.output_width;
+  params.output_height = config.output_height;
+  if (!normalizationFromString(config.normalization, &params.normalization))
+    params.normalization = NormalizationMethod::kPatch;
+  params.patch_size = config.patch_size;
+  params.min_patch_std = config.min_patch_std;
+  params.filter_window = config.filter_window;
+  params.normalization_strength = config.normalization_strength;
+  params.output_gain = config.output_gain;
+  params.sky_fraction = config.sky_fraction;
+  return params;
+}
+
+int greatestCommonDivisor(int a, int b)
+{
+  while (b != 0)
+  {
+    const int rest = a % b;
+    a = b;
+    b = rest;
+  }
+  return a;
+}
+
+}  // namespace
+
+void PreprocessorNodelet::onInit()
+{
+  ros::NodeHandle& nh = getNodeHandle();
+  ros::NodeHandle& private_nh = getPrivateNodeHandle();
+  it_ = std::make_shared<image_transport::ImageTransport>(nh);
+  private_nh.param("queue_size", queue_size_, queue_size_);
+  queue_size_ = std::max(1, queue_size_);
+
+  last_valid_config_ = PreprocessorConfig::__getDefault__();
+  reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<PreprocessorConfig>>(config_mutex_, private_nh);
+  reconfigure_server_->setCallback([this](PreprocessorConfig& config, uint32_t level) { configCb(config, level); });
+
+  // Announce the starting parameters before any image, so downstream nodelets can check maps now.
+  PreprocessingParams initial;
+  {
+    std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
+    initial = requested_params_;
+  }
+  preprocessor_.setParams(initial);
+  const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
+  params_pub_ = nh.advertise<std_msgs::String>(params_topic, 1, true);
+  announce(initial);
+
+  std::lock_guard<std::mutex> lock(connect_mutex_);
+  const image_transport::SubscriberStatusCallback connect_cb =
+      [this](const image_transport::SingleSubscriberPublisher&) { connectCb(); };
+  pub_ = it_->advertise("image_preprocessed", 1, connect_cb, connect_cb);
+  NODELET_INFO("Preprocessing %s -> %s (%s); parameters on %s", nh.resolveName("image").c_str(),
+               nh.resolveName("image_preprocessed").c_str(), initial.serialize().c_str(), params_topic.c_str());
+}
+
+void PreprocessorNodelet::connectCb()
+{
+  std::lock_guard<std::mutex> lock(connect_mutex_);
+  if (pub_.getNumSubscribers() == 0)
+  {
+    sub_.shutdown();
+  }
+  else if (!sub_)
+  {
+    const image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
+    sub_ = it_->subscribe("image", static_cast<uint32_t>(queue_size_), &PreprocessorNodelet::imageCb, this, hints);
+  }
+}
+
+void PreprocessorNodelet::configCb(PreprocessorConfig& config, uint32_t /*level*/)
+{
+  // Corrections, so the panel shows the values in use.
+  if (config.filter_window % 2 == 0)
+    config.filter_window += 1;
+  const int common = greatestCommonDivisor(config.output_width, config.output_height);
+  if (config.normalization == "patch" && common % config.patch_size != 0)
+  {
+    int divisor = std::min(config.patch_size, common);
+    while (common % divisor != 0)
+      --divisor;
+    NODELET_WARN("patch_size %d does not divide the output size %dx%d; using %d", config.patch_size,
+                 config.output_width, config.output_height, divisor);
+    config.patch_size = divisor;
+  }
+  const PreprocessingParams params = toParams(config);
+  const std::string invalid = params.validate();
+  if (!invalid.empty())
+  {
+    NODELET_ERROR("Rejected preprocessing parameters: %s; keeping the previous ones", invalid.c_str());
+    config = last_valid_config_;
+    return;
+  }
+  last_valid_config_ = config;
+  requested_params_ = params;
+}
+
+void PreprocessorNodelet::announce(const PreprocessingParams& params)
+{
+  std_msgs::StringPtr msg = boost::make_shared<std_msgs::String>();
+  msg->data = params.serialize();
+  params_pub_.publish(msg);
+}
+
+bool PreprocessorNodelet::checkInput(const sensor_msgs::Image& msg, PixelFormat* format)
+{
+  if (!pixelFormatFromEncoding(msg.encoding, format))
+  {
+    NODELET_ERROR_THROTTLE(5.0, "Dropping %ux%u image with unsupported encoding '%s'; accepted encodings: %s",
+                           msg.width, msg.height, msg.encoding.c_str(), supportedEncodings().c_str());
+    return false;
+  }
+  // cv_bridge wraps the buffer without checking it against the declared geometry.
+  const int bytes_per_pixel = sensor_msgs::image_encodings::numChannels(msg.encoding) *
+                              sensor_msgs::image_encodings::bitDepth(msg.encoding) / 8;
+  if (msg.width == 0 || msg.height == 0 || msg.step < msg.width * static_cast<uint32_t>(bytes_per_pixel) ||
+      msg.data.size() < static_cast<size_t>(msg.step) * msg.height)
+  {
+    NODELET_ERROR_THROTTLE(5.0,
+                           "Dropping malformed '%s' image: %ux%u px, step %u, %zu bytes of data "
+                           "(need width, height > 0, step >= width * %d and step * height bytes)",
+                           msg.encoding.c_str(), msg.width, msg.height, msg.step, msg.data.size(), bytes_per_pixel);
+    return false;
+  }
+  if (msg.is_bigendian && bytes_per_pixel / sensor_msgs::image_encodings::numChannels(msg.encoding) > 1)
+  {
+    NODELET_ERROR_THROTTLE(5.0, "Dropping big-endian '%s' image: only little-endian multi-byte pixels are accepted",
+                           msg.encoding.c_str());
+    return false;
+  }
+  return true;
+}
+
+void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
+{
+  PreprocessingParams params;
+  {
+    std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
+    params = requested_params_;
+  }
+  if (params != preprocessor_.params())
+  {
+    preprocessor_.setParams(params);
+    announce(params);  // before the first image made with them
+    NODELET_INFO("Preprocessing parameters now %s", params.serialize().c_str());
+  }
+
+  PixelFormat format;
+  if (!checkInput(*msg, &format))
+    return;
+
+  const sensor_msgs::ImagePtr out = boost::make_shared<sensor_msgs::Image>();
+  out->header = msg->header;
+  out->encoding = sensor_msgs::image_encodings::MONO8;
+  out->width = static_cast<uint32_t>(params.output_width);
+  out->height = static_cast<uint32_t>(params.output_height);
+  out->step = out->width;
+  out->is_bigendian = 0;
+  out->data.resize(static_cast<size_t>(out->step) * out->height);
+  cv::Mat output(params.output_height, params.output_width, CV_8UC1, &out->data[0], out->step);
+  try
+  {
+    const cv_bridge::CvImageConstPtr input = cv_bridge::toCvShare(msg);
+    preprocessor_.process(input->image, format, output);
+  }
+  catch (const std::exception& e)  // PreprocessingError, cv_bridge::Exception, cv::Exception
+  {
+    NODELET_ERROR_THROTTLE(5.0, "Dropping %ux%u '%s' image: %s", msg->width, msg->height, msg->encoding.c_str(),
+                           e.what());
+    return;
+  }
+  if (output.data != &out->data[0])
+  {
+    // The core reallocated instead of writing in place; keep the output right, say so once.
+    if (!in_place_warned_)
+      NODELET_WARN("Preprocessor::process did not write into the message buffer; copying");
+    in_place_warned_ = true;
+    cv::Mat wrapped(params.output_height, params.output_width, CV_8UC1, &out->data[0], out->step);
+    output.copyTo(wrapped);
+  }
+  pub_.publish(out);
+}
+
+}  // namespace along_route_localization
+
+#include <pluginlib/class_list_macros.hpp>
+PLUGINLIB_EXPORT_CLASS(along_route_localization::PreprocessorNodelet, nodelet::Nodelet)

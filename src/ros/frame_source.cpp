@@ -1,0 +1,227 @@
+#include "ros/frame_source.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <map>
+#include <set>
+#include <stdexcept>
+
+#include <boost/filesystem.hpp>
+#include <cv_bridge/cv_bridge.h>
+#include <opencv2/imgcodecs.hpp>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/Image.h>
+
+#include "ros/map_io.h"
+
+namespace along_route_localization
+{
+
+namespace
+{
+
+namespace fs = boost::filesystem;
+
+bool isImageFile(const fs::path& path)
+{
+  static const std::set<std::string> kExtensions = { ".png", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm", ".tif", ".tiff" };
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+  return kExtensions.count(ext) > 0;
+}
+
+/// Format of an image as cv::imread(IMREAD_UNCHANGED) returns it.
+PixelFormat formatOfDecoded(const cv::Mat& image, const std::string& file)
+{
+  switch (image.type())
+  {
+    case CV_8UC1:
+      return PixelFormat::kMono8;
+    case CV_16UC1:
+      return PixelFormat::kMono16;
+    case CV_8UC3:
+      return PixelFormat::kBgr8;
+    case CV_8UC4:
+      return PixelFormat::kBgra8;
+    default:
+      throw std::runtime_error("unsupported pixel type " + cv::typeToString(image.type()) + " in '" + file + "'");
+  }
+}
+
+/// Reads and preprocesses files in parallel, one Preprocessor per worker.
+std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, const PreprocessingParams& params)
+{
+  std::vector<cv::Mat> frames(files.size());
+  std::vector<std::string> errors(files.size());
+  cv::parallel_for_(cv::Range(0, static_cast<int>(files.size())), [&](const cv::Range& range) {
+    Preprocessor preprocessor(params);
+    for (int i = range.start; i < range.end; ++i)
+    {
+      const cv::Mat image = cv::imread(files[i], cv::IMREAD_UNCHANGED);
+      if (image.empty())
+      {
+        errors[i] = "cannot read image '" + files[i] + "'";
+        continue;
+      }
+      try
+      {
+        preprocessor.process(image, formatOfDecoded(image, files[i]), frames[i]);
+      }
+      catch (const std::exception& e)
+      {
+        errors[i] = files[i] + ": " + e.what();
+      }
+    }
+  });
+  for (const std::string& error : errors)
+    if (!error.empty())
+      throw std::runtime_error(error);
+  return frames;
+}
+
+std::string imageTopicOf(rosbag::Bag& bag, const std::string& path, const std::string& topic)
+{
+  if (!topic.empty())
+    return topic;
+  std::set<std::string> topics;
+  rosbag::View view(bag);
+  for (const rosbag::ConnectionInfo* info : view.getConnections())
+    if (info->datatype == "sensor_msgs/Image")
+      topics.insert(info->topic);
+  if (topics.size() != 1)
+  {
+    std::string names;
+    for (const std::string& t : topics)
+      names += " " + t;
+    throw std::runtime_error("bag '" + path + "' has " + std::to_string(topics.size()) +
+                             " sensor_msgs/Image topics (" + (names.empty() ? " none" : names) +
+                             " ); choose one with --topic");
+  }
+  return *topics.begin();
+}
+
+/// Preprocessed frames of an image topic, with their header stamps in ns.
+std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& topic, const PreprocessingParams& params,
+                                   std::vector<int64_t>* stamps_ns)
+{
+  rosbag::Bag bag;
+  try
+  {
+    bag.open(path, rosbag::bagmode::Read);
+  }
+  catch (const std::exception& e)
+  {
+    throw std::runtime_error("cannot open bag '" + path + "': " + e.what());
+  }
+  const std::string image_topic = imageTopicOf(bag, path, topic);
+  rosbag::View view(bag, rosbag::TopicQuery(image_topic));
+  if (view.size() == 0)
+    throw std::runtime_error("bag '" + path + "' has no messages on topic '" + image_topic + "'");
+  Preprocessor preprocessor(params);
+  std::vector<cv::Mat> frames;
+  for (const rosbag::MessageInstance& m : view)
+  {
+    const sensor_msgs::Image::ConstPtr msg = m.instantiate<sensor_msgs::Image>();
+    if (!msg)
+      throw std::runtime_error("topic '" + image_topic + "' of '" + path + "' is not sensor_msgs/Image");
+    PixelFormat format;
+    if (!pixelFormatFromEncoding(msg->encoding, &format))
+      throw std::runtime_error("image encoding '" + msg->encoding + "' in '" + path + "' is not supported (supported: " +
+                               supportedEncodings() + ")");
+    const cv_bridge::CvImageConstPtr image = cv_bridge::toCvShare(msg);
+    frames.emplace_back();
+    preprocessor.process(image->image, format, frames.back());
+    if (stamps_ns)
+      stamps_ns->push_back(static_cast<int64_t>(msg->header.stamp.toNSec()));
+  }
+  return frames;
+}
+
+/// A recorder map file is a bag with the map's parameter topic.
+bool isMapFile(const std::string& path)
+{
+  rosbag::Bag bag;
+  try
+  {
+    bag.open(path, rosbag::bagmode::Read);
+  }
+  catch (const std::exception&)
+  {
+    return false;  // let the image reader report why the file cannot be read
+  }
+  rosbag::View view(bag, rosbag::TopicQuery(kMapPreprocessingTopic));
+  return view.size() > 0;
+}
+
+bool isDirectory(const std::string& path)
+{
+  return fs::is_directory(fs::path(path));
+}
+
+void requireExists(const std::string& path)
+{
+  struct stat info;
+  if (stat(path.c_str(), &info) != 0)
+    throw std::runtime_error("'" + path + "' does not exist");
+}
+
+}  // namespace
+
+std::vector<std::string> listImageFiles(const std::string& folder)
+{
+  std::vector<std::string> files;
+  for (const fs::directory_entry& entry : fs::directory_iterator(fs::path(folder)))
+    if (fs::is_regular_file(entry.status()) && isImageFile(entry.path()))
+      files.push_back(entry.path().string());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+std::vector<cv::Mat> loadPreprocessedFrames(const std::string& path, const std::string& topic,
+                                            const PreprocessingParams& params)
+{
+  requireExists(path);
+  if (isDirectory(path))
+  {
+    const std::vector<std::string> files = listImageFiles(path);
+    if (files.empty())
+      throw std::runtime_error("folder '" + path + "' holds no image files");
+    return preprocessFiles(files, params);
+  }
+  return preprocessBag(path, topic, params, nullptr);
+}
+
+std::shared_ptr<RouteMap> loadMapFromPath(const std::string& path, const std::string& topic, PreprocessingParams* params)
+{
+  requireExists(path);
+  if (!isDirectory(path) && isMapFile(path))
+  {
+    auto map = std::make_shared<RouteMap>(readMap(path));
+    *params = map->params();
+    return map;
+  }
+  auto map = std::make_shared<RouteMap>(*params);
+  std::vector<int64_t> stamps;
+  std::vector<cv::Mat> frames;
+  if (isDirectory(path))
+  {
+    const std::vector<std::string> files = listImageFiles(path);
+    if (files.empty())
+      throw std::runtime_error("folder '" + path + "' holds no image files");
+    frames = preprocessFiles(files, *params);
+    for (size_t i = 0; i < frames.size(); ++i)
+      stamps.push_back(static_cast<int64_t>(i));
+  }
+  else
+  {
+    frames = preprocessBag(path, topic, *params, &stamps);
+  }
+  map->reserve(frames.size());
+  for (size_t i = 0; i < frames.size(); ++i)
+    map->addKeyframe(frames[i], stamps[i]);
+  return map;
+}
+
+}  // namespace along_route_localization

@@ -1,0 +1,617 @@
+#include "ros/map_io.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <new>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include <ros/console.h>
+#include <ros/exception.h>
+#include <ros/names.h>
+#include <rosbag/bag.h>
+#include <rosbag/exceptions.h>
+#include <sensor_msgs/image_encodings.h>
+#include <std_msgs/String.h>
+
+namespace along_route_localization
+{
+namespace
+{
+
+std::string inQuotes(const std::string& path)
+{
+  return "'" + path + "'";
+}
+
+bool fileExists(const std::string& path, struct stat* info)
+{
+  return ::stat(path.c_str(), info) == 0;
+}
+
+bool isMono8(const std::string& encoding)
+{
+  return encoding == sensor_msgs::image_encodings::MONO8 || encoding == sensor_msgs::image_encodings::TYPE_8UC1;
+}
+
+// Checks what can be told from the file system and the first bytes, before rosbag sees the file:
+// rosbag's own messages for these cases ("Error opening file") do not say what is wrong.
+void checkMapFile(const std::string& path)
+{
+  if (path.empty())
+    throw MapError("no map file given (empty path)");
+  struct stat info;
+  if (!fileExists(path, &info))
+  {
+    struct stat active_info;
+    if (fileExists(path + ".active", &active_info))
+      throw MapError("map file " + inQuotes(path) + " does not exist, but " + inQuotes(path + ".active") +
+                     " does: a recording was interrupted while it was writing; recover it with `rosbag reindex " +
+                     path + ".active` and rename it to " + inQuotes(path));
+    throw MapError("map file " + inQuotes(path) + " does not exist");
+  }
+  if (S_ISDIR(info.st_mode))
+    throw MapError("map file " + inQuotes(path) + " is a directory, not a map file");
+  if (info.st_size == 0)
+    throw MapError("map file " + inQuotes(path) + " is empty (0 bytes)");
+
+  std::ifstream file(path, std::ios::binary);
+  if (!file)
+    throw MapError("map file " + inQuotes(path) + " cannot be opened: " + std::strerror(errno));
+  const std::string magic = "#ROSBAG V2.0\n";
+  std::string head(magic.size(), '\0');
+  file.read(&head[0], static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<size_t>(file.gcount()));
+  if (head != magic)
+  {
+    if (head.compare(0, 9, "#ROSBAG V") == 0)
+      throw MapError("map file " + inQuotes(path) + " is a rosbag of another format version than 2.0");
+    if (magic.compare(0, head.size(), head) == 0)
+      throw MapError("map file " + inQuotes(path) + " is truncated (" + std::to_string(head.size()) +
+                     " bytes, not even a bag header)");
+    throw MapError("map file " + inQuotes(path) + " is not a rosbag (no '#ROSBAG V2.0' header): not a map file");
+  }
+}
+
+// The map reader walks the bag's records in file order instead of using rosbag's reader: a map file
+// is written in map order, an unindexed bag (an interrupted flush) reads as well, and every length
+// in a damaged file is checked before it is used (rosbag trusts them and may crash).
+class CorruptMap : public std::runtime_error
+{
+public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Bounds-checked little-endian reads from a byte range.
+class Cursor
+{
+public:
+  Cursor(const char* data, size_t size) : data_(data), left_(size) {}
+  size_t left() const { return left_; }
+  const char* bytes(size_t count, const char* what)
+  {
+    if (count > left_)
+      throw CorruptMap(std::string(what) + " claims " + std::to_string(count) + " bytes, " +
+                       std::to_string(left_) + " are left");
+    const char* start = data_;
+    data_ += count;
+    left_ -= count;
+    return start;
+  }
+  uint32_t u32(const char* what)
+  {
+    const unsigned char* b = reinterpret_cast<const unsigned char*>(bytes(4, what));
+    return static_cast<uint32_t>(b[0]) | static_cast<uint32_t>(b[1]) << 8 | static_cast<uint32_t>(b[2]) << 16 |
+           static_cast<uint32_t>(b[3]) << 24;
+  }
+  uint8_t u8(const char* what) { return static_cast<uint8_t>(*bytes(1, what)); }
+  std::string string(const char* what)
+  {
+    const uint32_t length = u32(what);
+    return std::string(bytes(length, what), length);
+  }
+
+private:
+  const char* data_;
+  size_t left_;
+};
+
+using Fields = std::map<std::string, std::string>;
+
+/// "length name=value" fields of a record header or a connection header.
+Fields parseFields(const std::string& bytes)
+{
+  Fields fields;
+  Cursor cursor(bytes.data(), bytes.size());
+  while (cursor.left() > 0)
+  {
+    const uint32_t length = cursor.u32("a header field");
+    const std::string field(cursor.bytes(length, "a header field"), length);
+    const size_t equals = field.find('=');
+    if (equals == std::string::npos)
+      throw CorruptMap("a record header field has no '='");
+    fields[field.substr(0, equals)] = field.substr(equals + 1);
+  }
+  return fields;
+}
+
+uint32_t fieldU32(const Fields& fields, const char* name)
+{
+  const auto it = fields.find(name);
+  if (it == fields.end() || it->second.size() != 4)
+    throw CorruptMap(std::string("a record lacks its 4-byte '") + name + "' field");
+  Cursor cursor(it->second.data(), 4);
+  return cursor.u32(name);
+}
+
+struct Record
+{
+  uint8_t op = 0;
+  Fields fields;
+  std::string data;
+};
+
+constexpr uint8_t kOpMessageData = 0x02;
+constexpr uint8_t kOpBagHeader = 0x03;
+constexpr uint8_t kOpIndexData = 0x04;
+constexpr uint8_t kOpChunk = 0x05;
+constexpr uint8_t kOpChunkInfo = 0x06;
+constexpr uint8_t kOpConnection = 0x07;
+constexpr uint32_t kMaxRecordHeaderBytes = 1 << 20;
+
+Record makeRecord(const std::string& header, std::string data)
+{
+  Record record;
+  record.fields = parseFields(header);
+  const auto op = record.fields.find("op");
+  if (op == record.fields.end() || op->second.size() != 1)
+    throw CorruptMap("a record has no op code");
+  record.op = static_cast<uint8_t>(op->second[0]);
+  record.data = std::move(data);
+  return record;
+}
+
+/// Records of a bag file, in file order; the file is never held in memory as a whole.
+class RecordScanner
+{
+public:
+  RecordScanner(std::ifstream& file, uint64_t size) : file_(file), size_(size), offset_(13) {}
+  uint64_t offset() const { return offset_; }
+
+  bool next(Record* record)
+  {
+    if (offset_ == size_)
+      return false;
+    const uint32_t header_length = readU32("a record header length");
+    if (header_length > kMaxRecordHeaderBytes)
+      throw CorruptMap("a record header claims " + std::to_string(header_length) + " bytes");
+    const std::string header = readBytes(header_length, "a record header");
+    const uint32_t data_length = readU32("a record data length");
+    *record = makeRecord(header, readBytes(data_length, "a record"));
+    return true;
+  }
+
+private:
+  std::string readBytes(uint64_t count, const char* what)
+  {
+    if (count > size_ - offset_)
+      throw CorruptMap(std::string("the file ends inside ") + what + " at byte " + std::to_string(offset_) +
+                       " (it claims " + std::to_string(count) + " bytes, " + std::to_string(size_ - offset_) +
+                       " are left)");
+    std::string bytes(static_cast<size_t>(count), '\0');
+    file_.read(&bytes[0], static_cast<std::streamsize>(count));
+    if (static_cast<uint64_t>(file_.gcount()) != count)
+      throw CorruptMap("reading failed at byte " + std::to_string(offset_));
+    offset_ += count;
+    return bytes;
+  }
+  uint32_t readU32(const char* what)
+  {
+    const std::string bytes = readBytes(4, what);
+    Cursor cursor(bytes.data(), 4);
+    return cursor.u32(what);
+  }
+
+  std::ifstream& file_;
+  uint64_t size_;
+  uint64_t offset_;
+};
+
+struct Connection
+{
+  std::string topic;
+  std::string type;
+};
+
+/// Collects what a map file holds while its records stream by.
+class MapContents
+{
+public:
+  explicit MapContents(const std::string& path) : path_(path) {}
+
+  void connection(const Record& record)
+  {
+    const uint32_t id = fieldU32(record.fields, "conn");
+    const Fields header = parseFields(record.data);
+    const auto topic = record.fields.find("topic");
+    const auto type = header.find("type");
+    if (topic == record.fields.end() || type == header.end())
+      throw CorruptMap("a connection record lacks its topic or type");
+    connections_[id] = Connection{ topic->second, type->second };
+  }
+
+  void message(const Record& record)
+  {
+    const uint32_t id = fieldU32(record.fields, "conn");
+    const auto connection = connections_.find(id);
+    if (connection == connections_.end())
+      throw CorruptMap("a message refers to connection " + std::to_string(id) + ", which is not defined");
+    const Connection& c = connection->second;
+    Cursor cursor(record.data.data(), record.data.size());
+    if (c.topic == kMapKeyframesTopic)
+    {
+      if (c.type != "sensor_msgs/Image")
+        throw MapError("map file " + inQuotes(path_) + ": topic '" + kMapKeyframesTopic + "' has type " + c.type +
+                       ", expected sensor_msgs/Image");
+      keyframe(cursor);
+    }
+    else if (c.topic == kMapPreprocessingTopic || c.topic == kMapInfoTopic)
+    {
+      if (c.type != "std_msgs/String")
+        throw MapError("map file " + inQuotes(path_) + ": topic '" + c.topic + "' has type " + c.type +
+                       ", expected std_msgs/String");
+      const std::string text = cursor.string("a string message");
+      if (c.topic == kMapInfoTopic)
+        info(text);
+      else
+        preprocessing(text);
+    }
+  }
+
+  RouteMap finish()
+  {
+    if (!params_)
+      throw MapError("map file " + inQuotes(path_) + " holds no preprocessing parameters (topic '" +
+                     kMapPreprocessingTopic + "'): not a map written by the map recorder");
+    if (map_.empty())
+      throw MapError("map file " + inQuotes(path_) + " holds no keyframes (topic '" + kMapKeyframesTopic + "')");
+    return std::move(map_);
+  }
+
+private:
+  struct Keyframe
+  {
+    int64_t stamp_ns;
+    uint32_t height, width, step;
+    std::string encoding, data;
+  };
+
+  void info(const std::string& text)
+  {
+    int format = 0;
+    if (std::sscanf(text.c_str(), "format=%d", &format) == 1 && format > kMapFormat)
+      throw MapError("map file " + inQuotes(path_) + " has map format " + std::to_string(format) +
+                     "; this version reads format " + std::to_string(kMapFormat) + " and older");
+  }
+
+  void preprocessing(const std::string& text)
+  {
+    if (params_)
+    {
+      if (text != params_text_)
+        throw MapError("map file " + inQuotes(path_) + " holds two different preprocessing parameter sets: '" +
+                       params_text_ + "' and '" + text + "'");
+      return;
+    }
+    PreprocessingParams params;
+    std::string error;
+    if (!PreprocessingParams::parse(text, &params, &error))
+      throw MapError("map file " + inQuotes(path_) + " has invalid preprocessing parameters '" + text + "': " + error);
+    params_.reset(new PreprocessingParams(params));
+    params_text_ = text;
+    map_ = RouteMap(params);
+    for (const Keyframe& keyframe : early_keyframes_)
+      add(keyframe);
+    early_keyframes_.clear();
+  }
+
+  void keyframe(Cursor& cursor)
+  {
+    Keyframe keyframe;
+    cursor.u32("an image header");  // seq
+    const uint32_t sec = cursor.u32("an image stamp");
+    const uint32_t nsec = cursor.u32("an image stamp");
+    keyframe.stamp_ns = static_cast<int64_t>(sec) * 1000000000LL + nsec;
+    cursor.string("an image frame_id");
+    keyframe.height = cursor.u32("an image height");
+    keyframe.width = cursor.u32("an image width");
+    keyframe.encoding = cursor.string("an image encoding");
+    cursor.u8("an image is_bigendian");
+    keyframe.step = cursor.u32("an image step");
+    keyframe.data = cursor.string("an image's data");
+    if (params_)
+      add(keyframe);
+    else
+      early_keyframes_.push_back(std::move(keyframe));
+  }
+
+  void add(const Keyframe& keyframe)
+  {
+    const std::string where = "map file " + inQuotes(path_) + ": keyframe " + std::to_string(map_.size());
+    if (!isMono8(keyframe.encoding))
+      throw MapError(where + " has encoding '" + keyframe.encoding + "', expected mono8");
+    if (static_cast<int>(keyframe.width) != map_.width() || static_cast<int>(keyframe.height) != map_.height())
+      throw MapError(where + " is " + std::to_string(keyframe.width) + "x" + std::to_string(keyframe.height) +
+                     " px, but the map's preprocessing makes " + std::to_string(map_.width()) + "x" +
+                     std::to_string(map_.height()) + " px (inconsistent keyframe sizes)");
+    if (keyframe.step < keyframe.width ||
+        keyframe.data.size() < static_cast<uint64_t>(keyframe.step) * keyframe.height)
+      throw MapError(where + " is truncated: " + std::to_string(keyframe.data.size()) + " bytes for " +
+                     std::to_string(keyframe.height) + " rows of step " + std::to_string(keyframe.step));
+    const cv::Mat view(map_.height(), map_.width(), CV_8UC1, const_cast<char*>(keyframe.data.data()), keyframe.step);
+    map_.addKeyframe(view, keyframe.stamp_ns);
+  }
+
+  std::string path_;
+  std::map<uint32_t, Connection> connections_;
+  std::unique_ptr<PreprocessingParams> params_;
+  std::string params_text_;
+  RouteMap map_;
+  std::vector<Keyframe> early_keyframes_;  // keyframes stored before the parameters (not by MapWriter)
+};
+
+}  // namespace
+
+std::string preprocessingParamsTopic(const std::string& resolved_image_topic)
+{
+  const std::string parent = ros::names::parentNamespace(resolved_image_topic);
+  return parent == "/" ? "/preprocessing_params" : parent + "/preprocessing_params";
+}
+
+std::string preprocessingDifference(const PreprocessingParams& a, const PreprocessingParams& b)
+{
+  const auto fields = [](const std::string& text) {
+    std::map<std::string, std::string> values;
+    std::stringstream stream(text);
+    std::string item;
+    while (std::getline(stream, item, ';'))
+    {
+      const size_t equals = item.find('=');
+      if (equals != std::string::npos)
+        values[item.substr(0, equals)] = item.substr(equals + 1);
+    }
+    return values;
+  };
+  const std::map<std::string, std::string> fields_a = fields(a.serialize());
+  const std::map<std::string, std::string> fields_b = fields(b.serialize());
+  std::string difference;
+  for (const auto& field : fields_a)
+  {
+    const auto other = fields_b.find(field.first);
+    const std::string value_b = other == fields_b.end() ? std::string("(none)") : other->second;
+    if (value_b != field.second)
+      difference += (difference.empty() ? "" : ", ") + field.first + ": " + field.second + " vs " + value_b;
+  }
+  for (const auto& field : fields_b)
+    if (!fields_a.count(field.first))
+      difference += (difference.empty() ? "" : ", ") + field.first + ": (none) vs " + field.second;
+  if (difference.empty() && a != b)
+    difference = "'" + a.serialize() + "' vs '" + b.serialize() + "'";
+  return difference;
+}
+
+RouteMap readMap(const std::string& path)
+{
+  checkMapFile(path);
+  std::ifstream file(path, std::ios::binary);
+  file.seekg(0, std::ios::end);
+  const uint64_t size = static_cast<uint64_t>(file.tellg());
+  file.seekg(13);  // past "#ROSBAG V2.0\n", checked above
+  RecordScanner scanner(file, size);
+  MapContents contents(path);
+  try
+  {
+    Record record;
+    bool first = true;
+    while (scanner.next(&record))
+    {
+      if (first && record.op != kOpBagHeader)
+        throw CorruptMap("the first record is not the bag header");
+      first = false;
+      switch (record.op)
+      {
+        case kOpChunk:
+        {
+          const auto compression = record.fields.find("compression");
+          if (compression == record.fields.end() || compression->second != "none")
+            throw MapError("map file " + inQuotes(path) + " has compressed chunks (" +
+                           (compression == record.fields.end() ? std::string("?") : compression->second) +
+                           "); map files are written uncompressed: `rosbag decompress " + path + "`");
+          if (fieldU32(record.fields, "size") != record.data.size())
+            throw CorruptMap("a chunk's size field disagrees with its data");
+          Cursor chunk(record.data.data(), record.data.size());
+          while (chunk.left() > 0)
+          {
+            const uint32_t header_length = chunk.u32("a record header length");
+            const std::string header(chunk.bytes(header_length, "a record header"), header_length);
+            const uint32_t data_length = chunk.u32("a record data length");
+            const Record inner = makeRecord(header, std::string(chunk.bytes(data_length, "a record"), data_length));
+            if (inner.op == kOpConnection)
+              contents.connection(inner);
+            else if (inner.op == kOpMessageData)
+              contents.message(inner);
+            else
+              throw CorruptMap("a chunk holds a record of op " + std::to_string(inner.op));
+          }
+          break;
+        }
+        case kOpConnection:
+          contents.connection(record);
+          break;
+        case kOpMessageData:
+          contents.message(record);
+          break;
+        case kOpBagHeader:
+        case kOpIndexData:
+        case kOpChunkInfo:
+          break;
+        default:
+          throw CorruptMap("unknown record op " + std::to_string(record.op));
+      }
+    }
+  }
+  catch (const CorruptMap& e)
+  {
+    throw MapError("map file " + inQuotes(path) + " is truncated or corrupt: " + e.what() + " (record ending at byte " +
+                   std::to_string(scanner.offset()) + " of " + std::to_string(size) +
+                   "); if a recording was interrupted, `rosbag reindex` may recover it");
+  }
+  catch (const std::bad_alloc&)
+  {
+    throw MapError("map file " + inQuotes(path) + " is corrupt: a record claims an impossible size");
+  }
+  return contents.finish();
+}
+
+sensor_msgs::ImagePtr keyframeMessage(const cv::Mat& preprocessed, int64_t stamp_ns, const std::string& frame_id)
+{
+  if (preprocessed.type() != CV_8UC1 || preprocessed.empty())
+    throw MapError("a keyframe must be a non-empty 8-bit single-channel image");
+  sensor_msgs::ImagePtr msg = boost::make_shared<sensor_msgs::Image>();
+  msg->header.stamp.fromNSec(static_cast<uint64_t>(std::max<int64_t>(stamp_ns, 0)));
+  msg->header.frame_id = frame_id;
+  msg->encoding = sensor_msgs::image_encodings::MONO8;
+  msg->width = static_cast<uint32_t>(preprocessed.cols);
+  msg->height = static_cast<uint32_t>(preprocessed.rows);
+  msg->step = msg->width;
+  msg->data.resize(static_cast<size_t>(msg->step) * msg->height);
+  cv::Mat wrapped(preprocessed.rows, preprocessed.cols, CV_8UC1, &msg->data[0], msg->step);
+  preprocessed.copyTo(wrapped);
+  return msg;
+}
+
+void writeMap(const std::string& path, const RouteMap& map)
+{
+  MapWriter writer(path, map.params(), "writeMap");
+  for (size_t i = 0; i < map.size(); ++i)
+    writer.add(keyframeMessage(map.keyframeMat(i), map.stampNs(i)));
+  writer.close();
+}
+
+MapWriter::MapWriter(const std::string& path, const PreprocessingParams& params, const std::string& writer_info)
+  : path_(path), params_(params), writer_info_(writer_info)
+{
+  if (path_.empty())
+    throw MapError("no map file given (empty path)");
+  const std::string invalid = params_.validate();
+  if (!invalid.empty())
+    throw MapError("cannot record a map with invalid preprocessing parameters: " + invalid);
+  try
+  {
+    rosbag::Bag bag;
+    bag.open(activePath(), rosbag::bagmode::Write);
+    bag.close();
+  }
+  catch (const rosbag::BagException& e)
+  {
+    throw MapError("cannot write map file " + inQuotes(activePath()) + ": " + e.what());
+  }
+}
+
+MapWriter::~MapWriter()
+{
+  try
+  {
+    close();
+  }
+  catch (const std::exception& e)
+  {
+    ROS_ERROR_STREAM("Closing map " << inQuotes(path_) << " failed: " << e.what());
+  }
+}
+
+void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe)
+{
+  if (closed_)
+    throw MapError("map " + inQuotes(path_) + " is closed; no keyframes can be added");
+  if (!keyframe)
+    throw MapError("null keyframe");
+  if (!isMono8(keyframe->encoding))
+    throw MapError("keyframe has encoding '" + keyframe->encoding + "'; a map holds mono8 preprocessed images");
+  if (static_cast<int>(keyframe->width) != params_.output_width ||
+      static_cast<int>(keyframe->height) != params_.output_height ||
+      keyframe->data.size() < static_cast<size_t>(keyframe->step) * keyframe->height ||
+      keyframe->step < keyframe->width)
+    throw MapError("keyframe is " + std::to_string(keyframe->width) + "x" + std::to_string(keyframe->height) +
+                   " px (" + std::to_string(keyframe->data.size()) + " bytes), but the map's preprocessing makes " +
+                   std::to_string(params_.output_width) + "x" + std::to_string(params_.output_height) + " px");
+  pending_.push_back(keyframe);
+}
+
+void MapWriter::flush()
+{
+  if (pending_.empty())
+    return;
+  const std::string active = activePath();
+  const bool first = written_ == 0;
+  // The final name is moved aside while appending, so that it never names a bag being modified.
+  if (!first && std::rename(path_.c_str(), active.c_str()) != 0)
+    throw MapError("cannot move map file " + inQuotes(path_) + " to " + inQuotes(active) + ": " + std::strerror(errno));
+  try
+  {
+    rosbag::Bag bag;
+    bag.open(active, first ? rosbag::bagmode::Write : rosbag::bagmode::Append);
+    ros::Time bag_time = last_bag_time_;
+    for (size_t i = 0; i < pending_.size(); ++i)
+    {
+      // Bag times strictly increase, so reading the bag in time order gives the map order even when
+      // the source stamps jump back (a looping bag with sim time) or are zero.
+      const ros::Time stamp = pending_[i]->header.stamp;
+      bag_time = (stamp > bag_time && stamp >= ros::TIME_MIN) ? stamp : bag_time + ros::Duration(0, 1);
+      if (bag_time < ros::TIME_MIN)
+        bag_time = ros::TIME_MIN;
+      if (first && i == 0)
+      {
+        std_msgs::String info;
+        info.data = "format=" + std::to_string(kMapFormat) + ";writer=along_route_localization" +
+                    (writer_info_.empty() ? std::string() : ";" + writer_info_);
+        bag.write(kMapInfoTopic, bag_time, info);
+        std_msgs::String preprocessing;
+        preprocessing.data = params_.serialize();
+        bag.write(kMapPreprocessingTopic, bag_time, preprocessing);
+      }
+      bag.write(kMapKeyframesTopic, bag_time, pending_[i]);
+    }
+    bag.close();
+    last_bag_time_ = bag_time;
+  }
+  catch (const rosbag::BagException& e)
+  {
+    throw MapError("writing map file " + inQuotes(active) + " failed: " + e.what());
+  }
+  if (std::rename(active.c_str(), path_.c_str()) != 0)
+    throw MapError("cannot rename " + inQuotes(active) + " to " + inQuotes(path_) + ": " + std::strerror(errno));
+  written_ += pending_.size();
+  pending_.clear();
+}
+
+void MapWriter::close()
+{
+  if (closed_)
+    return;
+  closed_ = true;
+  flush();
+  if (written_ == 0)
+    std::remove(activePath().c_str());  // nothing recorded: leave no file behind
+}
+
+}  // namespace along_route_localization

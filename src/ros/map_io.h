@@ -1,0 +1,103 @@
+// The route map file: a rosbag holding the keyframes and the preprocessing parameters that made them.
+// Shared by the map recorder and localizer nodelets and the offline tools.
+//
+// Layout (format 1):
+//   topic "keyframes"      sensor_msgs/Image, mono8, map order; header.stamp = the keyframe's source stamp
+//   topic "preprocessing"  std_msgs/String, PreprocessingParams::serialize() (exactly one message)
+//   topic "info"           std_msgs/String, "format=1;..." (what wrote the map)
+#ifndef ALONG_ROUTE_LOCALIZATION_ROS_MAP_IO_H
+#define ALONG_ROUTE_LOCALIZATION_ROS_MAP_IO_H
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <ros/time.h>
+#include <sensor_msgs/Image.h>
+
+#include "along_route_localization/preprocessing.h"
+#include "along_route_localization/route_map.h"
+
+namespace along_route_localization
+{
+
+constexpr char kMapKeyframesTopic[] = "keyframes";
+constexpr char kMapPreprocessingTopic[] = "preprocessing";
+constexpr char kMapInfoTopic[] = "info";
+constexpr int kMapFormat = 1;
+
+/// The preprocessor announces the parameters that make its images on a latched std_msgs/String
+/// (PreprocessingParams::serialize()) next to the image topic, as camera_info sits next to image:
+/// `<namespace of the resolved image topic>/preprocessing_params`. It publishes a new value right
+/// before the first image made with it, so a subscriber in the same process always knows what made
+/// the image it receives. The map recorder stores the value in the map; the localizer refuses a map
+/// whose parameters differ.
+std::string preprocessingParamsTopic(const std::string& resolved_image_topic);
+
+/// "output_width: 64 vs 32, sky_fraction: 0 vs 0.25" -- the fields whose serialized values differ.
+std::string preprocessingDifference(const PreprocessingParams& a, const PreprocessingParams& b);
+
+/// Reads a map file. Throws MapError with a sentence naming the file and what is wrong: missing,
+/// empty, not a bag, truncated or corrupt (with the `rosbag reindex` hint for an interrupted write),
+/// no or unparsable preprocessing parameters, no keyframes, keyframes of another encoding or size
+/// than the parameters say.
+RouteMap readMap(const std::string& path);
+
+/// Writes a whole map at once (through MapWriter). Throws MapError.
+void writeMap(const std::string& path, const RouteMap& map);
+
+/// A keyframe message (mono8, a copy of `preprocessed`) as the map file stores it.
+sensor_msgs::ImagePtr keyframeMessage(const cv::Mat& preprocessed, int64_t stamp_ns,
+                                      const std::string& frame_id = std::string());
+
+/// Writes a map as it is recorded. Not thread-safe: one thread (the recorder's writer thread) owns it.
+///
+/// Keyframes added are buffered until flush(). Each flush appends them to `<path>.active` and renames
+/// that to `<path>`, so the final name only ever holds a complete, indexed map of everything flushed so
+/// far; `<path>.active` exists only while a flush is writing (if the process dies there, `rosbag
+/// reindex <path>.active` recovers it). A map file left from before keeps its name until the first
+/// keyframe of the new recording is flushed.
+class MapWriter
+{
+public:
+  /// Checks that `<path>.active` can be written (creates it empty). Throws MapError.
+  MapWriter(const std::string& path, const PreprocessingParams& params,
+            const std::string& writer_info = std::string());
+  /// close(); errors are logged, not thrown.
+  ~MapWriter();
+
+  MapWriter(const MapWriter&) = delete;
+  MapWriter& operator=(const MapWriter&) = delete;
+
+  /// Buffers a keyframe (held by pointer, not copied). Throws MapError unless it is mono8 (or 8UC1)
+  /// of the parameters' output size.
+  void add(const sensor_msgs::ImageConstPtr& keyframe);
+
+  /// Writes the buffered keyframes; afterwards `<path>` is a complete map. No-op when nothing is
+  /// buffered. Throws MapError (the keyframes stay buffered, so a later flush may retry).
+  void flush();
+
+  /// flush() and stop accepting keyframes. Idempotent. Throws MapError.
+  void close();
+
+  const std::string& path() const { return path_; }
+  std::string activePath() const { return path_ + ".active"; }
+  const PreprocessingParams& params() const { return params_; }
+  /// Keyframes added so far / written to `<path>` so far.
+  size_t added() const { return written_ + pending_.size(); }
+  size_t written() const { return written_; }
+  bool closed() const { return closed_; }
+
+private:
+  std::string path_;
+  PreprocessingParams params_;
+  std::string writer_info_;
+  std::vector<sensor_msgs::ImageConstPtr> pending_;
+  size_t written_ = 0;
+  ros::Time last_bag_time_;
+  bool closed_ = false;
+};
+
+}  // namespace along_route_localization
+
+#endif  // ALONG_ROUTE_LOCALIZATION_ROS_MAP_IO_H

@@ -1,0 +1,210 @@
+// localize_offline: runs the localizer's core code path over recorded data, as fast as the machine allows.
+//   localize_offline --map PATH --query PATH --output results.csv [--params params.yaml]
+//                    [--method dtw|seqslam] [--topic TOPIC]
+// PATH: a folder of images (file-name order; every map image is a keyframe), a bag with an image topic,
+// or a map file written by the map recorder.
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "along_route_localization/localizer.h"
+#include "along_route_localization/parameters.h"
+#include "along_route_localization/preprocessing.h"
+#include "along_route_localization/route_map.h"
+#include "ros/frame_source.h"
+
+namespace alr = along_route_localization;
+
+namespace
+{
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start)
+{
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+void usage(std::ostream& out)
+{
+  out << "usage: localize_offline --map PATH --query PATH --output results.csv [--params params.yaml]\n"
+         "                        [--method dtw|seqslam] [--topic TOPIC] [--set name=value ...] [--quiet]\n"
+         "  PATH: a folder of images (sorted by file name), a bag with an image topic, or a map file\n"
+         "        written by the map recorder (its stored preprocessing parameters are used).\n"
+         "  --params: flat YAML 'name: value' file; --set overrides one parameter. Names:\n   ";
+  for (const std::string& name : alr::parameterNames())
+    out << " " << name;
+  out << "\n  Output CSV columns: query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";
+}
+
+class Progress
+{
+public:
+  Progress(const char* label, size_t total, bool enabled) : label_(label), total_(total), enabled_(enabled && isatty(2)) {}
+  void update(size_t done)
+  {
+    if (!enabled_ || (done != total_ && done % 64 != 0))
+      return;
+    const int width = 40;
+    const int filled = total_ ? static_cast<int>(width * done / total_) : width;
+    std::fprintf(stderr, "\r%-9s [%s%s] %zu/%zu", label_, std::string(filled, '#').c_str(),
+                 std::string(width - filled, ' ').c_str(), done, total_);
+    if (done == total_)
+      std::fprintf(stderr, "\n");
+  }
+
+private:
+  const char* label_;
+  size_t total_;
+  bool enabled_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+  std::string map_path, query_path, output_path, params_path, method, topic;
+  std::vector<std::pair<std::string, std::string>> overrides;
+  bool quiet = false;
+  for (int i = 1; i < argc; ++i)
+  {
+    const std::string arg = argv[i];
+    const auto value = [&]() -> std::string {
+      if (i + 1 >= argc)
+      {
+        std::cerr << "localize_offline: " << arg << " needs a value\n";
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (arg == "--map")
+      map_path = value();
+    else if (arg == "--query")
+      query_path = value();
+    else if (arg == "--output")
+      output_path = value();
+    else if (arg == "--params")
+      params_path = value();
+    else if (arg == "--method")
+      method = value();
+    else if (arg == "--topic")
+      topic = value();
+    else if (arg == "--set")
+    {
+      const std::string kv = value();
+      const size_t eq = kv.find('=');
+      if (eq == std::string::npos)
+      {
+        std::cerr << "localize_offline: --set takes name=value, got '" << kv << "'\n";
+        return 2;
+      }
+      overrides.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+    }
+    else if (arg == "--quiet")
+      quiet = true;
+    else if (arg == "-h" || arg == "--help")
+    {
+      usage(std::cout);
+      return 0;
+    }
+    else
+    {
+      std::cerr << "localize_offline: unknown argument '" << arg << "'\n";
+      usage(std::cerr);
+      return 2;
+    }
+  }
+  if (map_path.empty() || query_path.empty() || output_path.empty())
+  {
+    std::cerr << "localize_offline: --map, --query and --output are required\n";
+    usage(std::cerr);
+    return 2;
+  }
+
+  alr::PreprocessingParams preprocessing;
+  alr::LocalizerParams localizer_params;
+  std::string error;
+  if (!params_path.empty() && !alr::loadParameterFile(params_path, &preprocessing, &localizer_params, &error))
+  {
+    std::cerr << "localize_offline: " << error << "\n";
+    return 2;
+  }
+  for (const auto& kv : overrides)
+  {
+    if (!alr::applyParameter(kv.first, kv.second, &preprocessing, &localizer_params, &error))
+    {
+      std::cerr << "localize_offline: --set: " << error << "\n";
+      return 2;
+    }
+  }
+  if (!method.empty() && !alr::sequenceMethodFromString(method, &localizer_params.method))
+  {
+    std::cerr << "localize_offline: --method must be dtw or seqslam, got '" << method << "'\n";
+    return 2;
+  }
+
+  const auto start = Clock::now();
+  std::shared_ptr<alr::RouteMap> map;
+  std::vector<cv::Mat> queries;
+  try
+  {
+    // A recorder map carries the preprocessing it was made with; images are preprocessed with ours.
+    map = alr::loadMapFromPath(map_path, topic, &preprocessing);
+    if (map->empty())
+      throw alr::MapError("the map '" + map_path + "' holds no keyframes");
+    queries = alr::loadPreprocessedFrames(query_path, topic, preprocessing);
+    if (queries.empty())
+      throw alr::MapError("the query '" + query_path + "' holds no images");
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "localize_offline: " << e.what() << "\n";
+    return 1;
+  }
+  const double load_seconds = secondsSince(start);
+
+  std::ofstream out(output_path);
+  if (!out)
+  {
+    std::cerr << "localize_offline: cannot write '" << output_path << "'\n";
+    return 1;
+  }
+  out << "query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";
+  const auto localize_start = Clock::now();
+  try
+  {
+    alr::Localizer localizer(map, localizer_params);
+    Progress progress("localize", queries.size(), !quiet);
+    char line[160];
+    for (size_t q = 0; q < queries.size(); ++q)
+    {
+      const alr::LocalizationResult r = localizer.process(queries[q]);
+      std::snprintf(line, sizeof(line), "%zu,%d,%.6f,%.4f,%.6f,%s\n", q, r.keyframe, r.confidence, r.shift_px,
+                    r.homing_angle_rad, alr::toString(r.status).c_str());
+      out << line;
+      progress.update(q + 1);
+    }
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "localize_offline: " << e.what() << "\n";
+    return 1;
+  }
+  const double localize_seconds = secondsSince(localize_start);
+  out.close();
+  std::fprintf(stderr,
+               "localize_offline: %zu keyframes, %zu queries, method %s: loading %.3f s, localizing %.3f s "
+               "(%.3f ms/frame), total %.3f s -> %s\n",
+               map->size(), queries.size(), alr::toString(localizer_params.method).c_str(), load_seconds,
+               localize_seconds, 1000.0 * localize_seconds / queries.size(), secondsSince(start), output_path.c_str());
+  return 0;
+}

@@ -1,0 +1,277 @@
+// Step 2 (image_difference.h): SAD with a horizontal shift search, sub-pixel refinement, census cost,
+// texture energy, and a known shift recovered from a real Nordland frame.
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include "along_route_localization/image_difference.h"
+#include "along_route_localization/preprocessing.h"
+#include "nordland.h"
+
+namespace arl = along_route_localization;
+
+namespace
+{
+
+std::vector<uint8_t> randomBytes(size_t count, uint32_t seed)
+{
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::vector<uint8_t> bytes(count);
+  for (auto& b : bytes)
+    b = static_cast<uint8_t>(byte(rng));
+  return bytes;
+}
+
+// query(x) = keyframe(x - d) with the edge replicated where x - d leaves the image.
+std::vector<uint8_t> shiftedRight(const std::vector<uint8_t>& image, int width, int height, int d)
+{
+  std::vector<uint8_t> shifted(image.size());
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      shifted[y * width + x] = image[y * width + std::min(width - 1, std::max(0, x - d))];
+  return shifted;
+}
+
+// The 6 x 2 pair used by the hand calculations below.
+const uint8_t kTinyQuery[12] = { 10, 20, 30, 40, 50, 60,  //
+                                 1,  2,  3,  4,  5,  6 };
+const uint8_t kTinyKeyframe[12] = { 12, 22, 28, 44, 50, 70,  //
+                                    5,  5,  5,  5,  5,  5 };
+
+}  // namespace
+
+TEST(ImageDifference, SadOnTinyMatricesByHand)
+{
+  // width 6, height 2, m = 1: query columns 1..4 against keyframe columns 1-d .. 4-d.
+  // d = 0: row 0 |20-22|+|30-28|+|40-44|+|50-50| = 8, row 1 |2-5|+|3-5|+|4-5|+|5-5| = 6 -> 14
+  // d = +1 (keyframe columns 0..3): row 0 8+8+12+6 = 34, row 1 6 -> 40
+  // d = -1 (keyframe columns 2..5): row 0 |20-28|+|30-44|+|40-50|+|50-70| = 52, row 1 6 -> 58
+  const arl::ImageDifference difference(6, 2, 0, 1, false);
+  EXPECT_EQ(8, difference.comparedPixels());
+  EXPECT_EQ(14u, difference.sadAtShift(kTinyQuery, kTinyKeyframe, 0));
+  EXPECT_EQ(40u, difference.sadAtShift(kTinyQuery, kTinyKeyframe, 1));
+  EXPECT_EQ(58u, difference.sadAtShift(kTinyQuery, kTinyKeyframe, -1));
+
+  // Best shift 0, cost = 14 / 8 compared pixels.
+  const arl::ShiftedDifference best = difference.compare(kTinyQuery, kTinyKeyframe);
+  EXPECT_FLOAT_EQ(1.75f, best.cost);
+  EXPECT_FLOAT_EQ(0.0f, best.shift_px);
+}
+
+TEST(ImageDifference, SubpixelShiftIsTheVertexOfTheParabola)
+{
+  // Parabola through (-1, 58), (0, 14), (1, 40): vertex at
+  // (c(-1) - c(1)) / (2 (c(-1) - 2 c(0) + c(1))) = 18 / (2 * 70) = 0.128571. The cost stays 14 / 8.
+  const arl::ImageDifference difference(6, 2, 0, 1, true);
+  const arl::ShiftedDifference best = difference.compare(kTinyQuery, kTinyKeyframe);
+  EXPECT_NEAR(18.0 / 140.0, best.shift_px, 1e-5);
+  EXPECT_FLOAT_EQ(1.75f, best.cost);
+}
+
+TEST(ImageDifference, FirstRowSkipsSkyRows)
+{
+  // Row 0 differs wildly (sky), rows 1-2 are identical: with first_row 1 the cost is 0.
+  const uint8_t query[18] = { 0,  255, 0,  255, 0,  255,  //
+                              10, 20,  30, 40,  50, 60,   //
+                              61, 52,  43, 34,  25, 16 };
+  uint8_t keyframe[18];
+  for (int i = 0; i < 18; ++i)
+    keyframe[i] = query[i];
+  for (int x = 0; x < 6; ++x)
+    keyframe[x] = static_cast<uint8_t>(255 - query[x]);  // |difference| 255 on every sky pixel
+  const arl::ImageDifference with_sky(6, 3, 0, 1, false);
+  const arl::ImageDifference without_sky(6, 3, 1, 1, false);
+  EXPECT_EQ(12, with_sky.comparedPixels());
+  EXPECT_EQ(8, without_sky.comparedPixels());
+  EXPECT_EQ(4u * 255u, with_sky.sadAtShift(query, keyframe, 0));
+  EXPECT_EQ(0u, without_sky.sadAtShift(query, keyframe, 0));
+  const arl::ShiftedDifference best = without_sky.compare(query, keyframe);
+  EXPECT_FLOAT_EQ(0.0f, best.cost);
+  EXPECT_FLOAT_EQ(0.0f, best.shift_px);
+}
+
+TEST(ImageDifference, RecoversSyntheticShiftWithDocumentedSign)
+{
+  // query(x) = keyframe(x - d): the scene moved d px to the right, so shift_px = +d and SAD(d) = 0
+  // (the strip [4, 60) only reads keyframe columns [4 - d, 60 - d), inside the image for |d| <= 4).
+  const int width = 64, height = 32;
+  const std::vector<uint8_t> keyframe = randomBytes(width * height, 11);
+  const arl::ImageDifference integer(width, height, 0, 4, false);
+  const arl::ImageDifference subpixel(width, height, 0, 4, true);
+  for (int d : { 2, -2, 1, -3 })
+  {
+    const std::vector<uint8_t> query = shiftedRight(keyframe, width, height, d);
+    EXPECT_EQ(0u, integer.sadAtShift(query.data(), keyframe.data(), d)) << "d = " << d;
+    const arl::ShiftedDifference exact = integer.compare(query.data(), keyframe.data());
+    EXPECT_FLOAT_EQ(static_cast<float>(d), exact.shift_px) << "d = " << d;
+    EXPECT_FLOAT_EQ(0.0f, exact.cost) << "d = " << d;
+    const arl::ShiftedDifference refined = subpixel.compare(query.data(), keyframe.data());
+    EXPECT_NEAR(d, refined.shift_px, 0.5) << "d = " << d;
+    EXPECT_FLOAT_EQ(0.0f, refined.cost) << "d = " << d;
+  }
+}
+
+TEST(ImageDifference, ShiftAtTheEndOfTheRangeStaysInsideIt)
+{
+  // d = m = 4: the best cost has no neighbour at d = 5, so the answer must stay within [-4, 4].
+  const int width = 64, height = 32;
+  const std::vector<uint8_t> keyframe = randomBytes(width * height, 12);
+  const arl::ImageDifference subpixel(width, height, 0, 4, true);
+  for (int d : { 4, -4 })
+  {
+    const std::vector<uint8_t> query = shiftedRight(keyframe, width, height, d);
+    const arl::ShiftedDifference best = subpixel.compare(query.data(), keyframe.data());
+    EXPECT_NEAR(d, best.shift_px, 0.5) << "d = " << d;
+    EXPECT_LE(std::abs(best.shift_px), 4.0f) << "d = " << d;
+    EXPECT_FLOAT_EQ(0.0f, best.cost);
+  }
+}
+
+TEST(ImageDifference, CompareManyEqualsCompareForEveryKeyframe)
+{
+  const int width = 64, height = 32, count = 57;
+  const std::vector<uint8_t> keyframes = randomBytes(static_cast<size_t>(width) * height * count, 13);
+  // A query close to keyframe 20 shifted by 1, so that one keyframe stands out.
+  std::vector<uint8_t> keyframe20(keyframes.begin() + 20 * width * height, keyframes.begin() + 21 * width * height);
+  const std::vector<uint8_t> query = shiftedRight(keyframe20, width, height, 1);
+  for (int first_row : { 0, 5 })
+  {
+    const arl::ImageDifference difference(width, height, first_row, 4, true);
+    for (bool parallel : { false, true })
+    {
+      std::vector<float> costs(count, -1.0f), shifts(count, -99.0f);
+      difference.compareMany(query.data(), keyframes.data(), count, costs.data(), shifts.data(), parallel);
+      for (int k = 0; k < count; ++k)
+      {
+        const arl::ShiftedDifference single =
+            difference.compare(query.data(), keyframes.data() + static_cast<size_t>(k) * width * height);
+        EXPECT_EQ(single.cost, costs[k]) << "keyframe " << k << " parallel " << parallel;
+        EXPECT_EQ(single.shift_px, shifts[k]) << "keyframe " << k << " parallel " << parallel;
+      }
+      EXPECT_FLOAT_EQ(0.0f, costs[20]);
+      EXPECT_NEAR(1.0f, shifts[20], 0.5f);
+    }
+  }
+}
+
+TEST(ImageDifference, RandomPairCostIsTheMeanAbsoluteDifference)
+{
+  // Independent plain loop: cost = min_d SAD(d) / ((h - first_row) * (w - 2m)).
+  const int width = 40, height = 12, first_row = 2, m = 3;
+  const std::vector<uint8_t> query = randomBytes(width * height, 14);
+  const std::vector<uint8_t> keyframe = randomBytes(width * height, 15);
+  double best = 1e18;
+  for (int d = -m; d <= m; ++d)
+  {
+    double sad = 0.0;
+    for (int y = first_row; y < height; ++y)
+      for (int x = m; x < width - m; ++x)
+        sad += std::abs(query[y * width + x] - keyframe[y * width + x - d]);
+    best = std::min(best, sad);
+  }
+  const arl::ImageDifference difference(width, height, first_row, m, true);
+  EXPECT_NEAR(best / ((height - first_row) * (width - 2 * m)), difference.compare(query.data(), keyframe.data()).cost,
+              1e-4);
+}
+
+TEST(TextureEnergy, MeanAbsoluteDeviationFrom128ByHand)
+{
+  // Row 0: |0| + |2| + |-8| + |0| = 10; row 1: |-128| + |127| + 0 + 0 = 255.
+  // All rows: 265 / 8 = 33.125. From row 1: 255 / 4 = 63.75.
+  const uint8_t image[8] = { 128, 130, 120, 128,  //
+                             0,   255, 128, 128 };
+  EXPECT_FLOAT_EQ(33.125f, arl::textureEnergy(image, 4, 2, 0));
+  EXPECT_FLOAT_EQ(63.75f, arl::textureEnergy(image, 4, 2, 1));
+  const std::vector<uint8_t> flat(64 * 32, 128);
+  EXPECT_FLOAT_EQ(0.0f, arl::textureEnergy(flat.data(), 64, 32, 0));
+}
+
+TEST(Census, TransformOfA3x3ByHand)
+{
+  // 10 20 30 / 40 50 60 / 70 80 90; bit b = neighbour b (row-major, centre skipped) < centre,
+  // edges replicated. Centre 50: 10, 20, 30, 40 are darker -> bits 0-3 -> 15.
+  // (0,0) = 10: nothing darker -> 0. (0,1) = 20: up-left (replicated 10) bit 0, left 10 bit 3 -> 9.
+  // (1,0) = 40: up-left (replicated 10) bit 0, up 10 bit 1, up-right 20 bit 2 -> 7.
+  // (2,2) = 90: 50 b0, 60 b1, 60 (replicated) b2, 80 b3, 80 (replicated, below-left) b5 -> 47.
+  const uint8_t image[9] = { 10, 20, 30, 40, 50, 60, 70, 80, 90 };
+  uint8_t codes[9];
+  arl::censusTransform(image, 3, 3, codes);
+  const uint8_t expected[9] = { 0, 9, 9, 7, 15, 15, 7, 47, 47 };
+  for (int i = 0; i < 9; ++i)
+    EXPECT_EQ(expected[i], codes[i]) << "pixel " << i;
+
+  const uint8_t flat[9] = { 5, 5, 5, 5, 5, 5, 5, 5, 5 };
+  arl::censusTransform(flat, 3, 3, codes);
+  for (int i = 0; i < 9; ++i)
+    EXPECT_EQ(0, codes[i]) << "pixel " << i;
+}
+
+TEST(Census, CostIsMeanHammingDistanceWithShiftSearch)
+{
+  // width 6, height 1, m = 1: query columns 1..4.
+  // keyframe codes 01 03 07 0F 1F 3F; query(x) = keyframe(x - 1) -> at d = +1 identical (cost 0);
+  // d = 0: each pair differs in one bit -> 1; d = -1: two bits -> 2. Best d = +1, cost 0.
+  const uint8_t keyframe[6] = { 0x01, 0x03, 0x07, 0x0F, 0x1F, 0x3F };
+  const uint8_t query[6] = { 0xAA, 0x01, 0x03, 0x07, 0x0F, 0x1F };
+  const arl::CensusDifference census(6, 1, 0, 1, false);
+  const arl::ShiftedDifference best = census.compare(query, keyframe);
+  EXPECT_FLOAT_EQ(0.0f, best.cost);
+  EXPECT_FLOAT_EQ(1.0f, best.shift_px);
+
+  // Query FF/00 against keyframe 0F everywhere: 4 differing bits at every pixel and shift -> 4.
+  const uint8_t query2[6] = { 0x00, 0xFF, 0xFF, 0x00, 0x00, 0xFF };
+  const uint8_t keyframe2[6] = { 0x0F, 0x0F, 0x0F, 0x0F, 0x0F, 0x0F };
+  EXPECT_FLOAT_EQ(4.0f, census.compare(query2, keyframe2).cost);
+
+  // Keyframe shifted the other way: query(x) = keyframe(x + 1) -> d = -1.
+  const uint8_t query3[6] = { 0x03, 0x07, 0x0F, 0x1F, 0x3F, 0xAA };
+  const arl::ShiftedDifference left = census.compare(query3, keyframe);
+  EXPECT_FLOAT_EQ(0.0f, left.cost);
+  EXPECT_FLOAT_EQ(-1.0f, left.shift_px);
+}
+
+TEST(ImageDifference, CostFunctionNamesRoundTrip)
+{
+  for (auto cost : { arl::CostFunction::kSad, arl::CostFunction::kCensus })
+  {
+    arl::CostFunction parsed = cost == arl::CostFunction::kSad ? arl::CostFunction::kCensus : arl::CostFunction::kSad;
+    EXPECT_TRUE(arl::costFunctionFromString(arl::toString(cost), &parsed));
+    EXPECT_EQ(cost, parsed);
+  }
+  arl::CostFunction parsed;
+  EXPECT_FALSE(arl::costFunctionFromString("ncc", &parsed));
+}
+
+TEST(ImageDifference, RecoversKnownShiftOfARealNordlandFrame)
+{
+  SKIP_WITHOUT_NORDLAND();
+  // The raw 64 x 32 frame shifted right by d px (edge replicated, no wrap), both preprocessed with the
+  // default parameters (eq. 1, 8x8 patches): the best shift must be d within half a pixel.
+  arl::Preprocessor preprocessor;
+  const arl::ImageDifference difference(64, 32, preprocessor.params().skyRows(), 4, true);
+  for (int frame : { 1050, 1150, 1250 })
+  {
+    const cv::Mat raw = nordland::loadFrame("summer", frame);
+    ASSERT_FALSE(raw.empty()) << nordland::framePath("summer", frame);
+    ASSERT_EQ(64, raw.cols);
+    ASSERT_EQ(32, raw.rows);
+    cv::Mat keyframe;
+    preprocessor.process(raw, arl::PixelFormat::kBgr8, keyframe);
+    for (int d : { -3, -1, 2, 3 })
+    {
+      cv::Mat shifted(raw.size(), raw.type());
+      for (int y = 0; y < raw.rows; ++y)
+        for (int x = 0; x < raw.cols; ++x)
+          shifted.at<cv::Vec3b>(y, x) = raw.at<cv::Vec3b>(y, std::min(63, std::max(0, x - d)));
+      cv::Mat query;
+      preprocessor.process(shifted, arl::PixelFormat::kBgr8, query);
+      const arl::ShiftedDifference best = difference.compare(query.data, keyframe.data);
+      EXPECT_NEAR(d, best.shift_px, 0.5) << "frame " << frame << ", d = " << d;
+    }
+  }
+}

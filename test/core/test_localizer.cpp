@@ -1,0 +1,480 @@
+// Steps 2-5 together (localizer.h): homing angle, input checks, tracking a synthetic route, buffer
+// handling, re-initialization, and the real summer -> winter stretch of Nordland with its traps.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <stdexcept>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include "along_route_localization/localizer.h"
+#include "along_route_localization/preprocessing.h"
+#include "along_route_localization/route_map.h"
+#include "nordland.h"
+
+namespace arl = along_route_localization;
+using arl::LocalizationStatus;
+
+namespace
+{
+
+const double kPi = 3.14159265358979323846;
+
+cv::Mat randomFrame(uint64_t seed)
+{
+  cv::Mat frame(32, 64, CV_8UC1);
+  cv::RNG rng(seed);
+  rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
+  return frame;
+}
+
+// A route of `count` random textured keyframes (the content of keyframe k is randomFrame(1000 + k)).
+std::shared_ptr<arl::RouteMap> syntheticMap(int count)
+{
+  auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
+  for (int k = 0; k < count; ++k)
+    map->addKeyframe(randomFrame(1000 + k), 1000000000LL * k);
+  return map;
+}
+
+cv::Mat keyframeCopy(const arl::RouteMap& map, int k)
+{
+  return map.keyframeMat(k).clone();
+}
+
+// query(x) = image(x - d), edge replicated.
+cv::Mat shiftedRight(const cv::Mat& image, int d)
+{
+  cv::Mat shifted(image.size(), image.type());
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x)
+      shifted.at<uint8_t>(y, x) = image.at<uint8_t>(y, std::min(image.cols - 1, std::max(0, x - d)));
+  return shifted;
+}
+
+// Preprocessed Nordland frames 1000..1299 of one season (default parameters), loaded once.
+const std::vector<cv::Mat>& preprocessedStretch(const std::string& season)
+{
+  static std::vector<cv::Mat> summer, winter;
+  std::vector<cv::Mat>& frames = season == "summer" ? summer : winter;
+  if (frames.empty())
+  {
+    arl::Preprocessor preprocessor;
+    for (const cv::Mat& raw : nordland::loadFrames(season, 1000, 300))
+    {
+      cv::Mat out;
+      if (!raw.empty())
+        preprocessor.process(raw, arl::PixelFormat::kBgr8, out);
+      frames.push_back(out);
+    }
+  }
+  return frames;
+}
+
+struct RunSummary
+{
+  int answered = 0;       // frames after the first non-initializing answer
+  int within_one = 0;     // of those, |keyframe - truth| <= 1
+  int on_flat_wrong = 0;  // of those, matched to a flat keyframe that is not within 1 of the truth
+  int beyond_route = 0;   // of those, matched to a keyframe index >= route_length
+};
+
+// Feeds winter frames 1000..1299 to a localizer over `map`; the truth of frame i is truth[i].
+RunSummary runWinter(const std::shared_ptr<arl::RouteMap>& map, const std::vector<int>& truth,
+                     const std::vector<bool>& flat, int route_length)
+{
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  const std::vector<cv::Mat>& winter = preprocessedStretch("winter");
+  RunSummary summary;
+  bool initialized = false;
+  for (size_t i = 0; i < winter.size(); ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(winter[i]);
+    EXPECT_GE(result.confidence, 0.0);
+    EXPECT_LE(result.confidence, 1.0);
+    initialized = initialized || result.status != LocalizationStatus::kInitializing;
+    if (!initialized)
+      continue;
+    ++summary.answered;
+    if (result.keyframe >= 0 && std::abs(result.keyframe - truth[i]) <= 1)
+      ++summary.within_one;
+    else if (result.keyframe >= 0 && result.keyframe < static_cast<int>(flat.size()) && flat[result.keyframe])
+      ++summary.on_flat_wrong;
+    if (result.keyframe >= route_length)
+      ++summary.beyond_route;
+  }
+  EXPECT_EQ(static_cast<int>(localizer.costs().capacity()), localizer.params().ring_buffer_rows);
+  return summary;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- homing angle
+
+TEST(HomingAngle, FromShiftByHand)
+{
+  // width 64, hfov 90 deg: f = 32 / tan(45 deg) = 32 px. Shift +32 px (scene moved right, camera
+  // yawed left) -> turn right: -atan(32 / 32) = -pi/4. Shift -32 -> +pi/4. No shift -> 0.
+  EXPECT_NEAR(-kPi / 4, arl::homingAngleFromShift(32.0, 64, kPi / 2), 1e-12);
+  EXPECT_NEAR(kPi / 4, arl::homingAngleFromShift(-32.0, 64, kPi / 2), 1e-12);
+  EXPECT_DOUBLE_EQ(0.0, arl::homingAngleFromShift(0.0, 64, kPi / 2));
+  // hfov 1 rad: f = 32 / tan(0.5) = 58.5756 px; shift 16 -> -atan(16 / 58.5756) = -0.266647.
+  EXPECT_NEAR(-0.266647, arl::homingAngleFromShift(16.0, 64, 1.0), 1e-6);
+  // width 640, hfov 60 deg: f = 320 / tan(30 deg) = 554.256 px; shift -10 -> +0.018040.
+  EXPECT_NEAR(0.018040, arl::homingAngleFromShift(-10.0, 640, kPi / 3), 1e-6);
+}
+
+// ---------------------------------------------------------------- construction and input
+
+TEST(Localizer, RejectsEmptyMapInvalidParamsAndBadFrames)
+{
+  EXPECT_THROW(arl::Localizer(std::make_shared<arl::RouteMap>(arl::PreprocessingParams()), arl::LocalizerParams()),
+               std::invalid_argument);
+  const auto map = syntheticMap(20);
+  arl::LocalizerParams bad;
+  bad.ring_buffer_rows = 0;
+  EXPECT_THROW(arl::Localizer(map, bad), std::invalid_argument);
+
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  EXPECT_THROW(localizer.process(cv::Mat(32, 32, CV_8UC1, cv::Scalar(128))), std::invalid_argument);
+  EXPECT_THROW(localizer.process(cv::Mat(64, 32, CV_8UC1, cv::Scalar(128))), std::invalid_argument);
+  EXPECT_THROW(localizer.process(cv::Mat(32, 64, CV_8UC3, cv::Scalar(1, 2, 3))), std::invalid_argument);
+  EXPECT_THROW(localizer.process(cv::Mat(32, 64, CV_16UC1, cv::Scalar(1))), std::invalid_argument);
+  EXPECT_THROW(localizer.process(cv::Mat()), std::invalid_argument);
+  EXPECT_EQ(0u, localizer.frameCount());
+  EXPECT_THROW(localizer.setParams(bad), std::invalid_argument);
+}
+
+TEST(LocalizerParams, ValidateNamesInvalidValues)
+{
+  EXPECT_EQ("", arl::LocalizerParams().validate());
+  std::vector<arl::LocalizerParams> invalid(7);
+  invalid[0].ring_buffer_rows = 0;
+  invalid[1].max_shift_px = -1;
+  invalid[2].dtw.max_step = 0;
+  invalid[3].horizontal_fov_rad = 0.0;
+  invalid[4].horizontal_fov_rad = 3.5;  // >= pi
+  invalid[5].confidence_threshold = 1.5;  // a confidence lives in [0, 1]
+  invalid[6].contrast_window = -1;
+  for (size_t i = 0; i < invalid.size(); ++i)
+    EXPECT_NE("", invalid[i].validate()) << "case " << i;
+
+  for (auto method : { arl::SequenceMethod::kOnlineDtw, arl::SequenceMethod::kSeqSlam })
+  {
+    arl::SequenceMethod parsed =
+        method == arl::SequenceMethod::kSeqSlam ? arl::SequenceMethod::kOnlineDtw : arl::SequenceMethod::kSeqSlam;
+    EXPECT_TRUE(arl::sequenceMethodFromString(arl::toString(method), &parsed));
+    EXPECT_EQ(method, parsed);
+  }
+  arl::SequenceMethod parsed;
+  EXPECT_FALSE(arl::sequenceMethodFromString("particle_filter", &parsed));
+}
+
+// ---------------------------------------------------------------- synthetic route
+
+TEST(Localizer, TracksExactKeyframesInOrder)
+{
+  // 60 random keyframes; queries are keyframes 0..30 in order. Once initialized (at the latest after
+  // min_init_frames = 5 frames and one more) every answer is the query's own index, tracking, no shift.
+  const auto map = syntheticMap(60);
+  arl::LocalizerParams params;
+  params.ring_buffer_rows = 20;  // fewer rows than frames below, so the buffer must wrap
+  arl::Localizer localizer(map, params);
+  EXPECT_EQ(LocalizationStatus::kInitializing, localizer.process(keyframeCopy(*map, 0)).status);
+  for (int i = 1; i <= 30; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i));
+    EXPECT_GE(result.confidence, 0.0);
+    EXPECT_LE(result.confidence, 1.0);
+    EXPECT_TRUE(result.query_informative);
+    if (result.status == LocalizationStatus::kInitializing)
+    {
+      EXPECT_LE(i, 5) << "still initializing after " << i + 1 << " frames";
+      continue;
+    }
+    EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "frame " << i;
+    EXPECT_EQ(i, result.keyframe) << "frame " << i;
+    EXPECT_EQ(1000000000LL * i, result.keyframe_stamp_ns) << "frame " << i;
+    EXPECT_NEAR(0.0, result.shift_px, 0.25) << "frame " << i;
+    EXPECT_NEAR(0.0, result.homing_angle_rad, 0.01) << "frame " << i;
+  }
+  EXPECT_EQ(31u, localizer.frameCount());
+  // The ring buffer wrapped: 31 frames, K = 20 rows held, memory K x N floats.
+  EXPECT_EQ(20, localizer.costs().capacity());
+  EXPECT_EQ(20, localizer.costs().size());
+  EXPECT_EQ(20u * 60u * sizeof(float), localizer.costs().memoryBytes());
+  // The path ends at the current match.
+  ASSERT_FALSE(localizer.lastPath().empty());
+  EXPECT_EQ(30, localizer.lastPath().back());
+}
+
+TEST(Localizer, ReportsShiftAndHomingAngleOfAShiftedQuery)
+{
+  // Queries are keyframes shifted right by 2 px: shift_px ~ +2 and, with hfov 1 rad
+  // (f = 58.5756 px), homing angle -atan(2 / 58.5756) = -0.03413 rad (turn right).
+  const auto map = syntheticMap(40);
+  arl::LocalizerParams params;
+  params.horizontal_fov_rad = 1.0;
+  arl::Localizer localizer(map, params);
+  arl::LocalizationResult result;
+  for (int i = 0; i <= 15; ++i)
+    result = localizer.process(shiftedRight(keyframeCopy(*map, i), 2));
+  ASSERT_EQ(LocalizationStatus::kTracking, result.status);
+  EXPECT_EQ(15, result.keyframe);
+  EXPECT_NEAR(2.0, result.shift_px, 0.5);
+  EXPECT_NEAR(arl::homingAngleFromShift(result.shift_px, 64, 1.0), result.homing_angle_rad, 1e-9);
+  EXPECT_NEAR(-0.03413, result.homing_angle_rad, 0.01);
+}
+
+TEST(Localizer, SetParamsWithAnotherRingBufferSizeKeepsTracking)
+{
+  const auto map = syntheticMap(60);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i <= 15; ++i)
+    localizer.process(keyframeCopy(*map, i));
+  arl::LocalizerParams smaller = localizer.params();
+  smaller.ring_buffer_rows = 8;
+  localizer.setParams(smaller);
+  EXPECT_EQ(8, localizer.costs().capacity());
+  EXPECT_LE(localizer.costs().size(), 8);
+  for (int i = 16; i <= 30; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i));
+    EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "frame " << i;
+    EXPECT_EQ(i, result.keyframe) << "frame " << i;
+  }
+  EXPECT_EQ(8, localizer.costs().size());
+  arl::LocalizerParams larger = localizer.params();
+  larger.ring_buffer_rows = 30;
+  localizer.setParams(larger);
+  EXPECT_EQ(30, localizer.costs().capacity());
+  for (int i = 31; i <= 40; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i));
+    EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "frame " << i;
+    EXPECT_EQ(i, result.keyframe) << "frame " << i;
+  }
+}
+
+TEST(Localizer, ResetGoesBackToInitializing)
+{
+  const auto map = syntheticMap(60);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i <= 12; ++i)
+    ASSERT_NE(LocalizationStatus::kLost, localizer.process(keyframeCopy(*map, i)).status);
+  localizer.reset();
+  EXPECT_EQ(0u, localizer.frameCount());
+  // Time jumped: the route restarts at keyframe 40.
+  EXPECT_EQ(LocalizationStatus::kInitializing, localizer.process(keyframeCopy(*map, 40)).status);
+  arl::LocalizationResult result;
+  for (int i = 41; i <= 50; ++i)
+    result = localizer.process(keyframeCopy(*map, i));
+  EXPECT_EQ(LocalizationStatus::kTracking, result.status);
+  EXPECT_EQ(50, result.keyframe);
+  EXPECT_EQ(11u, localizer.frameCount());
+}
+
+TEST(Localizer, EndOfRouteNearTheLastKeyframe)
+{
+  const auto map = syntheticMap(60);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 30; i <= 59; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i));
+    if (i == 50)
+    {
+      EXPECT_EQ(LocalizationStatus::kTracking, result.status);
+    }
+    if (i == 59)
+    {
+      EXPECT_EQ(LocalizationStatus::kEndOfRoute, result.status);
+      EXPECT_EQ(59, result.keyframe);
+    }
+  }
+}
+
+TEST(Localizer, UnknownPlacesGetLostThenRelocalize)
+{
+  // Track keyframes 0..20, then 40 frames from nowhere on the route: confidence must stay low and the
+  // status turn to lost. Then keyframes 40..60 again: the localizer finds the route by itself.
+  const auto map = syntheticMap(80);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i <= 20; ++i)
+    localizer.process(keyframeCopy(*map, i));
+  bool lost = false;
+  for (int j = 0; j < 40 && !lost; ++j)
+    lost = localizer.process(randomFrame(50000 + j)).status == LocalizationStatus::kLost;
+  EXPECT_TRUE(lost) << "40 unknown frames did not make the localizer lost";
+  arl::LocalizationResult result;
+  for (int i = 40; i <= 60; ++i)
+    result = localizer.process(keyframeCopy(*map, i));
+  EXPECT_EQ(LocalizationStatus::kTracking, result.status);
+  EXPECT_EQ(60, result.keyframe);
+}
+
+TEST(Localizer, FeaturelessQueryIsReportedUninformative)
+{
+  const auto map = syntheticMap(40);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i <= 10; ++i)
+    EXPECT_TRUE(localizer.process(keyframeCopy(*map, i)).query_informative);
+  // A blank (tunnel) frame normalizes to flat 128: texture energy 0 < min_texture_energy.
+  const arl::LocalizationResult blank = localizer.process(cv::Mat(32, 64, CV_8UC1, cv::Scalar(128)));
+  EXPECT_FALSE(blank.query_informative);
+  EXPECT_GE(blank.confidence, 0.0);
+  EXPECT_LE(blank.confidence, 1.0);
+}
+
+TEST(Localizer, SeqSlamBaselineTracksExactKeyframes)
+{
+  const auto map = syntheticMap(60);
+  arl::LocalizerParams params;
+  params.method = arl::SequenceMethod::kSeqSlam;
+  arl::Localizer localizer(map, params);
+  for (int i = 0; i <= 30; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i));
+    if (i >= params.seqslam.sequence_length)
+    {
+      EXPECT_EQ(i, result.keyframe) << "frame " << i;
+    }
+  }
+}
+
+TEST(Localizer, CensusCostTracksExactKeyframes)
+{
+  const auto map = syntheticMap(60);
+  arl::LocalizerParams params;
+  params.cost_function = arl::CostFunction::kCensus;
+  arl::Localizer localizer(map, params);
+  arl::LocalizationResult result;
+  for (int i = 0; i <= 30; ++i)
+  {
+    result = localizer.process(keyframeCopy(*map, i));
+    if (i >= 10)
+    {
+      EXPECT_EQ(i, result.keyframe) << "frame " << i;
+    }
+  }
+  EXPECT_EQ(LocalizationStatus::kTracking, result.status);
+}
+
+TEST(Localizer, DebugImageIsBgrAndScaled)
+{
+  const auto map = syntheticMap(60);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i <= 25; ++i)
+    localizer.process(keyframeCopy(*map, i));
+  const cv::Mat image = localizer.renderDebugImage(0, 60, 4);
+  ASSERT_FALSE(image.empty());
+  EXPECT_EQ(CV_8UC3, image.type());
+  EXPECT_EQ(240, image.cols);
+  EXPECT_EQ(0, image.rows % 4);
+}
+
+// ---------------------------------------------------------------- real Nordland, summer map -> winter
+
+namespace
+{
+
+// Map of summer frames 1000..1299 (every frame), keyframe k = frame 1000 + k; `flat(k)` replaces a
+// keyframe by a featureless all-128 image; `extra_flat` flat keyframes are appended after the route.
+template <typename FlatPredicate>
+std::shared_ptr<arl::RouteMap> summerMap(FlatPredicate flat, int extra_flat)
+{
+  const std::vector<cv::Mat>& summer = preprocessedStretch("summer");
+  auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
+  for (size_t k = 0; k < summer.size(); ++k)
+  {
+    EXPECT_FALSE(summer[k].empty()) << "summer frame " << 1000 + k;
+    map->addKeyframe(flat(k) ? cv::Mat(32, 64, CV_8UC1, cv::Scalar(128)) : summer[k], 1000000000LL * k);
+  }
+  for (int k = 0; k < extra_flat; ++k)
+    map->addKeyframe(cv::Mat(32, 64, CV_8UC1, cv::Scalar(128)), 1000000000LL * (300 + k));
+  return map;
+}
+
+std::vector<int> identityTruth()
+{
+  std::vector<int> truth(300);
+  for (int i = 0; i < 300; ++i)
+    truth[i] = i;
+  return truth;
+}
+
+double rate(const RunSummary& summary)
+{
+  return summary.answered > 0 ? static_cast<double>(summary.within_one) / summary.answered : 0.0;
+}
+
+// The plain summer map against winter 1000..1299, run once.
+const RunSummary& plainRun()
+{
+  static RunSummary summary;
+  static bool done = false;
+  if (!done)
+  {
+    summary = runWinter(summerMap([](size_t) { return false; }, 0), identityTruth(), std::vector<bool>(300, false), 300);
+    done = true;
+  }
+  return summary;
+}
+
+}  // namespace
+
+TEST(Localizer, FollowsRealSummerToWinterStretch)
+{
+  SKIP_WITHOUT_NORDLAND();
+  // Map: summer frames 1000..1299 (every frame), query: winter 1000..1299. Same number = same place,
+  // so the truth of query i is keyframe i. The stretch holds two stations where both trains stand
+  // (frames ~6-19 and ~168-188) and a tunnel (~192-203). After initialization at least 80 % of the
+  // answers must be within +-1 keyframe of the truth.
+  const RunSummary& summary = plainRun();
+  ASSERT_GT(summary.answered, 250);
+  std::printf("summer->winter 1000..1299: %d of %d answers within +-1 (%.1f %%)\n", summary.within_one,
+              summary.answered, 100 * rate(summary));
+  EXPECT_GE(rate(summary), 0.8);
+}
+
+TEST(Localizer, FlatKeyframesAfterTheRouteNeverAttract)
+{
+  SKIP_WITHOUT_NORDLAND();
+  // The same route with 20 flat (all-128, featureless) keyframes appended at indices 300..319. Under
+  // plain SAD a flat keyframe is closer to a low-contrast winter query than many true places; they must
+  // never be the answer, and tracking must be as good as without them (within 2 points).
+  const auto map = summerMap([](size_t) { return false; }, 20);
+  EXPECT_FLOAT_EQ(0.0f, map->energy(310));
+  std::vector<bool> flat(320, false);
+  std::fill(flat.begin() + 300, flat.end(), true);
+  const RunSummary summary = runWinter(map, identityTruth(), flat, 300);
+  ASSERT_GT(summary.answered, 250);
+  std::printf("with 20 flat keyframes appended: %d of %d within +-1 (%.1f %%; plain map %.1f %%)\n",
+              summary.within_one, summary.answered, 100 * rate(summary), 100 * rate(plainRun()));
+  EXPECT_EQ(0, summary.beyond_route) << "answers on the appended flat keyframes";
+  EXPECT_GE(rate(summary), rate(plainRun()) - 0.02);
+}
+
+TEST(Localizer, EveryFifthKeyframeFlatDoesNotAttractMatches)
+{
+  SKIP_WITHOUT_NORDLAND();
+  // Keyframes k with k % 5 == 0 replaced by flat 128 images (60 of 300). A flat keyframe may be the
+  // answer where it is the true place (+-1), but must not pull answers elsewhere: at most 5 % of the
+  // answers may sit on a flat keyframe away from the truth. The neighbours of every flat keyframe are
+  // real, so answers within +-1 must stay within 5 points of the plain map's rate.
+  const auto map = summerMap([](size_t k) { return k % 5 == 0; }, 0);
+  std::vector<bool> flat(300, false);
+  for (size_t k = 0; k < 300; k += 5)
+    flat[k] = true;
+  const RunSummary summary = runWinter(map, identityTruth(), flat, 300);
+  ASSERT_GT(summary.answered, 250);
+  std::printf("every 5th keyframe flat: %d of %d within +-1 (%.1f %%; plain map %.1f %%), %d wrong answers on "
+              "flat keyframes\n",
+              summary.within_one, summary.answered, 100 * rate(summary), 100 * rate(plainRun()),
+              summary.on_flat_wrong);
+  EXPECT_LE(static_cast<double>(summary.on_flat_wrong) / summary.answered, 0.05);
+  EXPECT_GE(rate(summary), rate(plainRun()) - 0.05);
+}

@@ -1,0 +1,264 @@
+// Step 4 (online_dtw.h): accumulated cost, backtracked path and the match on hand-made cost matrices.
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "along_route_localization/cost_ring_buffer.h"
+#include "along_route_localization/online_dtw.h"
+
+namespace arl = along_route_localization;
+
+namespace
+{
+
+// Appends the rows of `matrix` (oldest first), each covering keyframes [0, width).
+void appendRows(arl::CostRingBuffer& buffer, const std::vector<std::vector<float>>& matrix)
+{
+  for (const auto& costs : matrix)
+  {
+    float* row = buffer.appendRow(0, static_cast<int>(costs.size()));
+    for (size_t j = 0; j < costs.size(); ++j)
+      row[j] = costs[j];
+  }
+}
+
+// Ones everywhere, zeros at (row, path[row]).
+std::vector<std::vector<float>> onesWithZeroPath(int width, const std::vector<int>& path)
+{
+  std::vector<std::vector<float>> matrix(path.size(), std::vector<float>(width, 1.0f));
+  for (size_t r = 0; r < path.size(); ++r)
+    matrix[r][path[r]] = 0.0f;
+  return matrix;
+}
+
+arl::DtwParams handParams(int exclusion_radius)
+{
+  arl::DtwParams params;
+  params.max_step = 2;
+  params.stop_penalty = 0.3f;
+  params.skip_penalty = 0.05f;
+  params.missing_cost = 1.0f;
+  params.exclusion_radius = exclusion_radius;
+  params.column_centering = false;  // these tests check the plain recursion; centering has its own test
+  return params;
+}
+
+// 8 frames over 10 keyframes: 0 1 2 2 (stop) 3 5 7 (double speed) 8.
+const std::vector<int> kStopAndGo = { 0, 1, 2, 2, 3, 5, 7, 8 };
+
+}  // namespace
+
+TEST(OnlineDtw, FollowsStopAndGo)
+{
+  // The only all-zero path is the one laid out; it pays one stop (0.3) and two (1,2) steps
+  // (1 * 0.05 each): 0.4 in total, 0.4 / 8 rows = 0.05 per row. Every other path crosses a 1.
+  arl::CostRingBuffer buffer(8, 10);
+  appendRows(buffer, onesWithZeroPath(10, kStopAndGo));
+  arl::OnlineDtw dtw(handParams(2));
+  const arl::SequenceMatch match = dtw.match(buffer, 0, 10, 8, true);
+  EXPECT_EQ(8, match.keyframe);
+  EXPECT_NEAR(0.05f, match.cost, 1e-6);
+  EXPECT_EQ(8, match.rows);
+  ASSERT_EQ(kStopAndGo.size(), match.path.size());
+  for (size_t r = 0; r < kStopAndGo.size(); ++r)
+    EXPECT_EQ(kStopAndGo[r], match.path[r]) << "row " << r;
+}
+
+TEST(OnlineDtw, AccumulatedRowMatchesHandRecursion)
+{
+  // A_7(i) / 8 from the recursion of the header (worked with a plain loop outside the code):
+  // e.g. A_7(9) = 1 + A_6(7) + 0.05 = 1 + 0.4 + 0.05 = 1.45; A_7(5) = 0.35 + 2 * (1 + 0.3) = 2.95
+  // (the path to keyframe 5 at row 5 costs 0.3 + 0.05, then stops twice on ones).
+  arl::CostRingBuffer buffer(8, 10);
+  appendRows(buffer, onesWithZeroPath(10, kStopAndGo));
+  arl::OnlineDtw dtw(handParams(2));
+  dtw.match(buffer, 0, 10, 8, false);
+  const float expected[10] = { 9.1f / 8, 7.8f / 8, 5.5f / 8, 4.2f / 8, 3.9f / 8,
+                               2.95f / 8, 2.65f / 8, 1.7f / 8, 0.4f / 8, 1.45f / 8 };
+  const std::vector<float>& accumulated = dtw.lastAccumulated();
+  ASSERT_EQ(10u, accumulated.size());
+  for (int i = 0; i < 10; ++i)
+    EXPECT_NEAR(expected[i], accumulated[i], 1e-5) << "keyframe " << i;
+}
+
+TEST(OnlineDtw, SecondCostRespectsExclusionRadius)
+{
+  // Best end 8 (A = 0.4). Others: A_7(9) = 1.45, A_7(7) = 1.7, A_7(6) = 2.65, A_7(5) = 2.95.
+  // radius 0 -> best outside {8} is keyframe 9: 1.45 / 8; radius 1 -> outside [7, 9]: keyframe 6,
+  // 2.65 / 8; radius 2 -> outside [6, 10]: keyframe 5, 2.95 / 8; radius 9 -> nothing left.
+  arl::CostRingBuffer buffer(8, 10);
+  appendRows(buffer, onesWithZeroPath(10, kStopAndGo));
+  const float expected[3] = { 1.45f / 8, 2.65f / 8, 2.95f / 8 };
+  for (int radius = 0; radius < 3; ++radius)
+  {
+    arl::OnlineDtw dtw(handParams(radius));
+    const arl::SequenceMatch match = dtw.match(buffer, 0, 10, 8);
+    EXPECT_EQ(8, match.keyframe);
+    EXPECT_TRUE(match.has_second) << "radius " << radius;
+    EXPECT_NEAR(expected[radius], match.second_cost, 1e-5) << "radius " << radius;
+  }
+  arl::OnlineDtw wide(handParams(9));
+  EXPECT_FALSE(wide.match(buffer, 0, 10, 8).has_second);
+}
+
+TEST(OnlineDtw, UsesOnlyTheNewestRows)
+{
+  // rows = 3: only frames 5..7 (keyframes 5, 7, 8) count: one (1,2) step -> 0.05 / 3.
+  // rows = 20 > size: all 8 rows, as in FollowsStopAndGo.
+  arl::CostRingBuffer buffer(8, 10);
+  appendRows(buffer, onesWithZeroPath(10, kStopAndGo));
+  arl::OnlineDtw dtw(handParams(2));
+  const arl::SequenceMatch three = dtw.match(buffer, 0, 10, 3, true);
+  EXPECT_EQ(8, three.keyframe);
+  EXPECT_EQ(3, three.rows);
+  EXPECT_NEAR(0.05f / 3, three.cost, 1e-6);
+  ASSERT_EQ(3u, three.path.size());
+  EXPECT_EQ(5, three.path[0]);
+  EXPECT_EQ(7, three.path[1]);
+  EXPECT_EQ(8, three.path[2]);
+  const arl::SequenceMatch all = dtw.match(buffer, 0, 10, 20, true);
+  EXPECT_EQ(8, all.rows);
+  EXPECT_NEAR(0.05f, all.cost, 1e-6);
+}
+
+TEST(OnlineDtw, StopPenaltyKeepsThePathFromParking)
+{
+  // 6 frames x 10 keyframes: keyframe 2 costs 0 in every row (a featureless keyframe under plain SAD),
+  // the true diagonal 3..8 costs 0.1 per row, the rest 1.
+  // stop 0.3: parking on 2 costs 5 * 0.3 = 1.5; the best path starts on keyframe 2 (0), steps (1,2) to
+  // 4 (0.05 + 0.1) and follows the diagonal to 8 (4 * 0.1): 0.55 -> end 8, 0.55 / 6.
+  // stop 0: parking on 2 costs nothing and wins -> end 2, cost 0.
+  std::vector<std::vector<float>> matrix(6, std::vector<float>(10, 1.0f));
+  for (int r = 0; r < 6; ++r)
+  {
+    matrix[r][2] = 0.0f;
+    matrix[r][r + 3] = 0.1f;
+  }
+  arl::CostRingBuffer buffer(6, 10);
+  appendRows(buffer, matrix);
+  arl::OnlineDtw with_penalty(handParams(2));
+  const arl::SequenceMatch moving = with_penalty.match(buffer, 0, 10, 6, true);
+  EXPECT_EQ(8, moving.keyframe);
+  EXPECT_NEAR(0.55f / 6, moving.cost, 1e-6);
+  ASSERT_EQ(6u, moving.path.size());
+  const int expected_path[6] = { 2, 4, 5, 6, 7, 8 };
+  for (int r = 0; r < 6; ++r)
+    EXPECT_EQ(expected_path[r], moving.path[r]) << "row " << r;
+
+  arl::DtwParams free_stop = handParams(2);
+  free_stop.stop_penalty = 0.0f;
+  arl::OnlineDtw parking(free_stop);
+  const arl::SequenceMatch parked = parking.match(buffer, 0, 10, 6);
+  EXPECT_EQ(2, parked.keyframe);
+  EXPECT_NEAR(0.0f, parked.cost, 1e-6);
+}
+
+TEST(OnlineDtw, MatchCanLeaveTheStepRangeAndRecover)
+{
+  // K = 8, 40 keyframes. First 8 frames on the diagonal 0..7 -> match 7. Then 5 frames at keyframes
+  // 30..34 (a relocation no (1,k) step can follow). The buffer now holds frames at 5, 6, 7 and 30..34.
+  // Continuing the old path costs 5 ones (5); the new path crosses 3 ones in the old rows and then
+  // zeros, all (1,1) steps (3): end 34, far outside [7, 7 + s], cost 3 / 8 = 0.375.
+  arl::CostRingBuffer buffer(8, 40);
+  appendRows(buffer, onesWithZeroPath(40, { 0, 1, 2, 3, 4, 5, 6, 7 }));
+  arl::OnlineDtw dtw(handParams(5));
+  const arl::SequenceMatch before = dtw.match(buffer, 0, 40, 8);
+  EXPECT_EQ(7, before.keyframe);
+  EXPECT_NEAR(0.0f, before.cost, 1e-6);
+
+  std::vector<std::vector<float>> jump(5, std::vector<float>(40, 1.0f));
+  for (int r = 0; r < 5; ++r)
+    jump[r][30 + r] = 0.0f;
+  appendRows(buffer, jump);
+  const arl::SequenceMatch after = dtw.match(buffer, 0, 40, 8, true);
+  EXPECT_EQ(34, after.keyframe);
+  EXPECT_NEAR(0.375f, after.cost, 1e-6);
+  ASSERT_EQ(8u, after.path.size());
+  for (int r = 0; r < 8; ++r)
+    EXPECT_EQ(27 + r, after.path[r]) << "row " << r;
+}
+
+TEST(OnlineDtw, MissingCostIsUsedOutsideTheBands)
+{
+  // Row 0: [0, 10) all 0.5. Row 1: band [2, 5) = 0 0 0. Row 2: band [3, 6) = 0.2 0.1 0.3.
+  // missing 1: A_1(i) = 0.5 for i in 2..4 (from A_0(i-1)), A_1(0) = 1 + 0.8 = 1.8, A_1(1) = 1.5,
+  // A_1(i >= 5) = 1.5. A_2(4) = 0.1 + A_1(3) = 0.6 (best), A_2(3) = 0.7, A_2(5) = 0.8,
+  // A_2(6) = 1 + A_1(4) + 0.05 = 1.55, A_2(0) = 1 + A_1(0) + 0.3 = 3.1, A_2(1) = 1 + 1.8 = 2.8.
+  // missing 5: A_1(0) = 5.8, A_2(0) = 5 + 6.1 = 11.1; A_2(6) = 5 + 0.55 = 5.55.
+  arl::CostRingBuffer buffer(3, 10);
+  float* row0 = buffer.appendRow(0, 10);
+  for (int j = 0; j < 10; ++j)
+    row0[j] = 0.5f;
+  float* row1 = buffer.appendRow(2, 3);
+  row1[0] = row1[1] = row1[2] = 0.0f;
+  float* row2 = buffer.appendRow(3, 3);
+  row2[0] = 0.2f;
+  row2[1] = 0.1f;
+  row2[2] = 0.3f;
+
+  arl::OnlineDtw dtw(handParams(2));
+  const arl::SequenceMatch match = dtw.match(buffer, 0, 10, 3);
+  EXPECT_EQ(4, match.keyframe);
+  EXPECT_NEAR(0.6f / 3, match.cost, 1e-6);
+  ASSERT_EQ(10u, dtw.lastAccumulated().size());
+  EXPECT_NEAR(3.1f / 3, dtw.lastAccumulated()[0], 1e-5);
+  EXPECT_NEAR(2.8f / 3, dtw.lastAccumulated()[1], 1e-5);
+  EXPECT_NEAR(0.7f / 3, dtw.lastAccumulated()[3], 1e-5);
+  EXPECT_NEAR(0.8f / 3, dtw.lastAccumulated()[5], 1e-5);
+  EXPECT_NEAR(1.55f / 3, dtw.lastAccumulated()[6], 1e-5);
+
+  arl::DtwParams expensive = handParams(2);
+  expensive.missing_cost = 5.0f;
+  dtw.setParams(expensive);
+  EXPECT_EQ(4, dtw.match(buffer, 0, 10, 3).keyframe);
+  EXPECT_NEAR(11.1f / 3, dtw.lastAccumulated()[0], 1e-5);
+  EXPECT_NEAR(5.55f / 3, dtw.lastAccumulated()[6], 1e-5);
+}
+
+TEST(OnlineDtw, MaxStepLimitsTheSpeed)
+{
+  // 4 frames at keyframes 0, 3, 6, 9 (three keyframes per frame). With s = 3 the zero path is
+  // reachable at 2 * 0.05 per (1,3) step: 3 * 0.1 = 0.3 -> end 9, 0.3 / 4. With s = 2 no two zeros
+  // are linked by a step of at most 2, so every path crosses at least 3 ones: cost >= 3 / 4.
+  arl::CostRingBuffer buffer(4, 12);
+  appendRows(buffer, onesWithZeroPath(12, { 0, 3, 6, 9 }));
+  arl::DtwParams fast = handParams(2);
+  fast.max_step = 3;
+  arl::OnlineDtw dtw(fast);
+  const arl::SequenceMatch match = dtw.match(buffer, 0, 12, 4, true);
+  EXPECT_EQ(9, match.keyframe);
+  EXPECT_NEAR(0.3f / 4, match.cost, 1e-6);
+  ASSERT_EQ(4u, match.path.size());
+  EXPECT_EQ(3, match.path[1]);
+  EXPECT_EQ(6, match.path[2]);
+
+  arl::OnlineDtw slow(handParams(2));
+  const arl::SequenceMatch limited = slow.match(buffer, 0, 12, 4);
+  EXPECT_GE(limited.cost, 3.0f / 4 - 1e-6f);
+}
+
+TEST(OnlineDtw, ColumnCenteringStopsAGenericKeyframeFromCarryingThePath)
+{
+  // 3 frames x 4 keyframes. Keyframe 0 costs 0.15 in every row (a view that resembles every query);
+  // the diagonal 1, 2, 3 costs 0.3 per row, the rest 1. stop 0.3, skip 0.05.
+  // Plain: parking on 0 costs 3 * 0.15 + 0.3 (second stop) = 0.75 < diagonal 0.9 -> end 0, 0.75 / 3.
+  // Centred: column means 0.15 and (0.3 + 1 + 1) / 3; keyframe 0 becomes 0 per row (parking 0.3),
+  // the diagonal 3 * (0.3 - 2.3 / 3) = -1.4 -> end 3, cost -1.4 / 3.
+  arl::CostRingBuffer buffer(3, 4);
+  appendRows(buffer, { { 0.15f, 0.3f, 1.0f, 1.0f }, { 0.15f, 1.0f, 0.3f, 1.0f }, { 0.15f, 1.0f, 1.0f, 0.3f } });
+  arl::OnlineDtw plain(handParams(0));
+  const arl::SequenceMatch parked = plain.match(buffer, 0, 4, 3);
+  EXPECT_EQ(0, parked.keyframe);
+  EXPECT_NEAR(0.75f / 3, parked.cost, 1e-6);
+
+  arl::DtwParams centred_params = handParams(0);
+  centred_params.column_centering = true;
+  arl::OnlineDtw centred(centred_params);
+  const arl::SequenceMatch moving = centred.match(buffer, 0, 4, 3, true);
+  EXPECT_EQ(3, moving.keyframe);
+  EXPECT_NEAR(-1.4f / 3, moving.cost, 1e-5);
+  ASSERT_EQ(3u, moving.path.size());
+  EXPECT_EQ(1, moving.path[0]);
+  EXPECT_EQ(2, moving.path[1]);
+  EXPECT_EQ(3, moving.path[2]);
+}

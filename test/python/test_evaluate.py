@@ -1,0 +1,248 @@
+"""scripts/evaluate: metrics checked against hand-worked examples."""
+
+import contextlib
+import io
+import json
+import os
+import shutil
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # finds scripts_under_test
+from scripts_under_test import load
+
+evaluate = load("evaluate")
+
+
+def write(path, text):
+    with open(path, "w") as f:
+        f.write(text)
+
+
+class PrecisionRecallTest(unittest.TestCase):
+    def test_five_ranked_queries(self):
+        # ranked by confidence: hit, hit, miss, hit, miss
+        # precision 1/1, 2/2, 2/3, 3/4, 3/5; recall 1/5, 2/5, 2/5, 3/5, 3/5
+        # AP = 0.2*1 + 0.2*1 + 0*(2/3) + 0.2*(3/4) + 0*(3/5) = 0.55; recall at 100% precision = 0.4
+        confidence = [0.6, 0.9, 0.5, 0.8, 0.7]
+        correct = [True, True, False, True, False]
+        thresholds, precision, recall = evaluate.precision_recall(confidence, correct, [True] * 5)
+        np.testing.assert_allclose(thresholds, [0.9, 0.8, 0.7, 0.6, 0.5])
+        np.testing.assert_allclose(precision, [1.0, 1.0, 2.0 / 3.0, 0.75, 0.6])
+        np.testing.assert_allclose(recall, [0.2, 0.4, 0.4, 0.6, 0.6])
+        self.assertAlmostEqual(evaluate.average_precision(precision, recall), 0.55)
+        self.assertAlmostEqual(evaluate.recall_at_full_precision(precision, recall), 0.4)
+
+    def test_tied_confidences_are_one_threshold(self):
+        # 0.9 (hit) and 0.9 (miss) cannot be separated: first point P = 1/2, R = 1/3; then P = 2/3, R = 2/3
+        # AP = 1/3 * 1/2 + 1/3 * 2/3 = 7/18; precision never reaches 1 -> recall at 100% precision 0
+        thresholds, precision, recall = evaluate.precision_recall([0.9, 0.9, 0.5], [True, False, True], [True] * 3)
+        np.testing.assert_allclose(thresholds, [0.9, 0.5])
+        np.testing.assert_allclose(precision, [0.5, 2.0 / 3.0])
+        np.testing.assert_allclose(recall, [1.0 / 3.0, 2.0 / 3.0])
+        self.assertAlmostEqual(evaluate.average_precision(precision, recall), 7.0 / 18.0)
+        self.assertEqual(evaluate.recall_at_full_precision(precision, recall), 0.0)
+
+    def test_unanswered_queries_count_in_recall_only(self):
+        # 4 queries, the 2nd has no answer (its confidence must be ignored): ranking hit(0.8), hit(0.3), miss(0.1)
+        # recall over all 4: 1/4, 2/4, 2/4; precision 1, 1, 2/3
+        _, precision, recall = evaluate.precision_recall([0.8, 0.99, 0.3, 0.1], [True, False, True, False],
+                                                         [True, False, True, True])
+        np.testing.assert_allclose(recall, [0.25, 0.5, 0.5])
+        np.testing.assert_allclose(precision, [1.0, 1.0, 2.0 / 3.0])
+        self.assertAlmostEqual(evaluate.recall_at_full_precision(precision, recall), 0.5)
+        self.assertAlmostEqual(evaluate.average_precision(precision, recall), 0.5)
+
+    def test_nothing_answered(self):
+        _, precision, recall = evaluate.precision_recall([0.5, 0.4], [False, False], [False, False])
+        self.assertEqual(evaluate.average_precision(precision, recall), 0.0)
+        self.assertEqual(evaluate.recall_at_full_precision(precision, recall), 0.0)
+
+
+class FrameErrorTest(unittest.TestCase):
+    def test_integer_truth_and_no_answer(self):
+        errors = evaluate.frame_errors([3, 7, -1, 0], [3, 5, 2, 1])
+        np.testing.assert_array_equal(errors, [0, 2, np.inf, 1])
+
+    def test_fractional_truth_accepts_both_neighbours(self):
+        # exact 2.5: keyframes 2 and 3 are both right (0), 1 and 4 are one off; exact 3.0 behaves like integer 3
+        errors = evaluate.frame_errors([2, 3, 4, 1, 5, -1], [0] * 6, [2.5, 2.5, 2.5, 2.5, 3.0, 2.5])
+        np.testing.assert_array_equal(errors, [0, 0, 1, 1, 2, np.inf])
+
+    def test_within_shares(self):
+        shares = evaluate.within_shares([0, 1, 1, 3, 6, np.inf, 2, 0])
+        self.assertEqual(shares, {0: 2 / 8, 1: 4 / 8, 2: 5 / 8, 5: 6 / 8})
+
+
+class HomingTest(unittest.TestCase):
+    def test_errors_and_signs(self):
+        # used: rows 0-2 (row 3 has true shift 0, row 4 no answer): errors 0.2, 1.5, 0.0; signs right, wrong, right
+        result = evaluate.homing_errors([1.2, -0.5, 2.0, 0.7, 3.0], [1.0, 1.0, 2.0, 0.0, -3.0],
+                                        [True, True, True, True, False])
+        self.assertEqual(result["count"], 3)
+        self.assertAlmostEqual(result["median_abs_error_px"], 0.2)
+        self.assertAlmostEqual(result["mean_abs_error_px"], 1.7 / 3.0)
+        self.assertAlmostEqual(result["sign_agreement"], 2.0 / 3.0)
+
+    def test_zero_estimate_is_wrong_sign(self):
+        result = evaluate.homing_errors([0.0], [-1.0], [True])
+        self.assertEqual(result["sign_agreement"], 0.0)
+
+
+SIX_QUERIES = """query_index,keyframe,confidence,shift_px,homing_angle_rad,status
+0,0,0.9,0.1,-0.003,tracking
+1,1,0.8,0.0,0.0,tracking
+2,5,0.95,0.0,0.0,lost
+3,3,0.4,1.5,-0.05,tracking
+4,-1,0.99,0.0,0.0,initializing
+5,6,0.6,-2.5,0.08,tracking
+"""
+
+
+class EvaluateEndToEndTest(unittest.TestCase):
+    """Six queries, identity truth, tolerance 1.
+
+    errors 0, 0, 3, 0, no answer, 1 -> within 0: 3/6, within 1: 4/6, within 2: 4/6, within 5: 5/6.
+    answered ranked by confidence: 0.95 miss, 0.9 hit, 0.8 hit, 0.6 hit, 0.4 hit; recall over 6 queries:
+    precision 0, 1/2, 2/3, 3/4, 4/5 at recall 0, 1/6, 2/6, 3/6, 4/6
+    -> AP = (1/2 + 2/3 + 3/4 + 4/5) / 6 = 0.4527777..., recall at 100% precision 0 (the top answer is wrong).
+    """
+
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp(prefix="test_evaluate_")
+        self.results = os.path.join(self.tmp, "results.csv")
+        write(self.results, SIX_QUERIES)
+
+    def tearDown(self):
+        shutil.rmtree(self.tmp)
+
+    def run_main(self, args):
+        out = io.StringIO()
+        err = io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = evaluate.main(args)
+        return code, out.getvalue(), err.getvalue()
+
+    def check_six(self, m):
+        self.assertEqual(m["queries"], 6)
+        self.assertEqual(m["no_answer"], 1)
+        self.assertAlmostEqual(m["within"]["0"], 3 / 6)
+        self.assertAlmostEqual(m["within"]["1"], 4 / 6)
+        self.assertAlmostEqual(m["within"]["2"], 4 / 6)
+        self.assertAlmostEqual(m["within"]["5"], 5 / 6)
+        self.assertAlmostEqual(m["average_precision"], (0.5 + 2 / 3 + 0.75 + 0.8) / 6)
+        self.assertEqual(m["recall_at_100_precision"], 0.0)
+        self.assertEqual(m["by_status"]["lost"], {"queries": 1, "wrong": 1})
+        self.assertEqual(m["by_status"]["initializing"], {"queries": 1, "wrong": 1})
+        self.assertEqual(m["by_status"]["tracking"], {"queries": 4, "wrong": 0})
+
+    def test_identity(self):
+        json_path = os.path.join(self.tmp, "m.json")
+        code, out, _ = self.run_main([self.results, "--identity", "--output-json", json_path])
+        self.assertEqual(code, 0)
+        with open(json_path) as f:
+            m = json.load(f)
+        self.check_six(m)
+        self.assertIn("within 0/1/2/5 frames: 0.500 / 0.667 / 0.667 / 0.833", out)
+
+    def test_ground_truth_file_with_teach_frame_and_shift(self):
+        # the synthetic generator's columns; true shifts +1.0 on queries 3 and 5, 0 elsewhere:
+        # query 3 estimates 1.5 (error 0.5, right sign), query 5 estimates -2.5 (error 3.5, wrong sign)
+        # heading offsets 0.031 rad on q3 and q5: the homing angle should be -0.031
+        gt = os.path.join(self.tmp, "gt.csv")
+        write(gt, "query_index,teach_frame,heading_offset_rad,expected_shift_px_64\n"
+                  "0,0,0,0\n1,1,0,0\n2,2,0,0\n3,3,0.031,1.0\n4,4,0,0\n5,5,0.031,1.0\n")
+        json_path = os.path.join(self.tmp, "m.json")
+        code, _, _ = self.run_main([self.results, "-g", gt, "--output-json", json_path])
+        self.assertEqual(code, 0)
+        with open(json_path) as f:
+            m = json.load(f)
+        self.check_six(m)
+        self.assertEqual(m["homing"]["count"], 2)
+        self.assertAlmostEqual(m["homing"]["median_abs_error_px"], 2.0)
+        self.assertAlmostEqual(m["homing"]["mean_abs_error_px"], 2.0)
+        self.assertAlmostEqual(m["homing"]["sign_agreement"], 0.5)
+        # homing angle should be -0.031: q3 -0.05 (error 0.019, right sign), q5 0.08 (error 0.111, wrong sign)
+        self.assertAlmostEqual(m["homing"]["angle_median_abs_error_rad"], (0.019 + 0.111) / 2)
+        self.assertAlmostEqual(m["homing"]["angle_sign_agreement"], 0.5)
+        # unshifted answered queries 0, 1, 2: |shift| 0.1, 0, 0 -> median 0
+        self.assertEqual(m["homing"]["zero_shift_count"], 3)
+        self.assertAlmostEqual(m["homing"]["zero_shift_median_abs_px"], 0.0)
+
+    def test_missing_rows_are_no_answers_and_dark_frames(self):
+        # truth has 8 queries: 6 and 7 are missing from the results -> 3 no answers; dark: 2 (wrong) and 6 (missing)
+        gt = os.path.join(self.tmp, "gt.csv")
+        write(gt, "query_index,keyframe,true_shift_px,query_dark\n" +
+              "".join("%d,%d,0,%d\n" % (i, i, 1 if i in (2, 6) else 0) for i in range(8)))
+        json_path = os.path.join(self.tmp, "m.json")
+        code, _, _ = self.run_main([self.results, "-g", gt, "--output-json", json_path])
+        self.assertEqual(code, 0)
+        with open(json_path) as f:
+            m = json.load(f)
+        self.assertEqual(m["queries"], 8)
+        self.assertEqual(m["no_answer"], 3)
+        self.assertEqual(m["missing_rows"], 2)
+        self.assertAlmostEqual(m["within"]["1"], 4 / 8)
+        self.assertEqual(m["dark"]["queries"], 2)
+        self.assertEqual(m["dark"]["wrong"], 2)
+        self.assertAlmostEqual(m["dark"]["within_tolerance_not_dark"], 4 / 6)
+        # explicit list overrides the column
+        code, _, _ = self.run_main([self.results, "-g", gt, "--output-json", json_path, "--dark-frames", "0-1"])
+        with open(json_path) as f:
+            m = json.load(f)
+        self.assertEqual(m["dark"]["queries"], 2)
+        self.assertEqual(m["dark"]["wrong"], 0)
+
+    def test_tolerance_zero(self):
+        json_path = os.path.join(self.tmp, "m.json")
+        self.run_main([self.results, "--identity", "--tolerance", "0", "--output-json", json_path])
+        with open(json_path) as f:
+            m = json.load(f)
+        # hits now 0.9, 0.8, 0.4 (q5 is one off): precision 0, 1/2, 2/3, 2/4, 3/5 at recall 0, 1/6, 2/6, 2/6, 3/6
+        self.assertAlmostEqual(m["average_precision"], (0.5 + 2 / 3 + 0.6) / 6)
+
+    def test_plots_and_cost_matrix(self):
+        plots = os.path.join(self.tmp, "plots")
+        cost = os.path.join(self.tmp, "cost.npy")
+        np.save(cost, np.arange(6 * 7, dtype=np.float32).reshape(6, 7))
+        code, _, _ = self.run_main([self.results, "--identity", "--plots", plots, "--cost-matrix", cost])
+        self.assertEqual(code, 0)
+        for name in ("matches.png", "precision_recall.png", "cost_matrix.png"):
+            self.assertGreater(os.path.getsize(os.path.join(plots, name)), 1000, name)
+
+    def test_bad_input_exits_nonzero(self):
+        bad = os.path.join(self.tmp, "bad.csv")
+        write(bad, "query_index,keyframe\n0,0\n")
+        self.assertEqual(self.run_main([bad, "--identity"])[0], 2)
+        self.assertEqual(self.run_main([os.path.join(self.tmp, "nothing.csv"), "--identity"])[0], 2)
+        write(bad, "query_index,keyframe,confidence\n")
+        self.assertEqual(self.run_main([bad, "--identity"])[0], 2)
+        gt = os.path.join(self.tmp, "gt.csv")
+        write(gt, "query_index,place\n0,0\n")
+        code, _, err = self.run_main([self.results, "-g", gt])
+        self.assertEqual(code, 2)
+        self.assertIn("keyframe or teach_frame", err)
+
+
+class IndexListTest(unittest.TestCase):
+    def test_ranges(self):
+        self.assertEqual(evaluate.parse_index_list("3,7,10-12"), [3, 7, 10, 11, 12])
+
+    def test_file(self):
+        with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as f:
+            f.write("4\n# comment\n9\n")
+        try:
+            self.assertEqual(evaluate.parse_index_list(f.name), [4, 9])
+        finally:
+            os.remove(f.name)
+
+    def test_malformed(self):
+        with self.assertRaises(evaluate.InputError):
+            evaluate.parse_index_list("3,x")
+
+
+if __name__ == "__main__":
+    unittest.main()

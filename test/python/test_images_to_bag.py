@@ -1,0 +1,141 @@
+"""scripts/images_to_bag: shifting, frame selection, and a bag written and read back."""
+
+import contextlib
+import io
+import os
+import shutil
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # finds scripts_under_test
+from scripts_under_test import load, ros_python_available
+
+images_to_bag = load("images_to_bag")
+
+
+class ShiftTest(unittest.TestCase):
+    def test_right_shift_replicates_left_edge(self):
+        row = np.array([[10, 20, 30, 40, 50]], np.uint8)
+        np.testing.assert_array_equal(images_to_bag.shift_image(row, 2), [[10, 10, 10, 20, 30]])
+
+    def test_left_shift_replicates_right_edge(self):
+        row = np.array([[10, 20, 30, 40, 50]], np.uint8)
+        np.testing.assert_array_equal(images_to_bag.shift_image(row, -1), [[20, 30, 40, 50, 50]])
+
+    def test_colour_image_and_no_wrap(self):
+        image = np.zeros((2, 4, 3), np.uint8)
+        image[:, 3] = (1, 2, 3)       # rightmost column
+        shifted = images_to_bag.shift_image(image, 1)
+        self.assertEqual(shifted.shape, (2, 4, 3))
+        np.testing.assert_array_equal(shifted[:, 0], 0)   # the right edge must not wrap to the left
+        np.testing.assert_array_equal(shifted[:, 3], 0)
+        self.assertEqual(images_to_bag.shift_image(image, 0).tolist(), image.tolist())
+
+
+class FrameSelectionTest(unittest.TestCase):
+    def test_list_with_ranges_keeps_order_and_repeats(self):
+        self.assertEqual(images_to_bag.parse_frame_list("5,0,2-4,2", 10), [5, 0, 2, 3, 4, 2])
+
+    def test_every(self):
+        self.assertEqual(images_to_bag.select_frames(10, None, 3), [0, 3, 6, 9])
+        self.assertEqual(images_to_bag.select_frames(10, "1-6", 2), [1, 3, 5])
+
+    def test_bad_lists(self):
+        for text in ("3,12", "a", "5-2", "", "-1"):
+            with self.assertRaises(images_to_bag.InputError, msg=text):
+                images_to_bag.parse_frame_list(text, 10)
+        with self.assertRaises(images_to_bag.InputError):
+            images_to_bag.select_frames(10, None, 0)
+
+
+@unittest.skipUnless(ros_python_available(), "rosbag / sensor_msgs not importable (use /usr/bin/python3)")
+class BagTest(unittest.TestCase):
+    def setUp(self):
+        import cv2
+        self.cv2 = cv2
+        self.tmp = tempfile.mkdtemp(prefix="test_images_to_bag_")
+        self.folder = os.path.join(self.tmp, "images")
+        os.makedirs(self.folder)
+        # file names out of creation order: the bag must follow sorted file names
+        for value, name in ((30, "c.png"), (10, "a.png"), (20, "b.png")):
+            image = np.zeros((4, 6, 3), np.uint8)
+            image[:, :, 0] = value          # blue channel (OpenCV writes BGR)
+            image[:, :, 2] = value + 1      # red channel
+            image[:, 5] = (200, 201, 202)   # a distinct rightmost column
+            cv2.imwrite(os.path.join(self.folder, name), image)
+        with open(os.path.join(self.folder, "notes.txt"), "w") as f:
+            f.write("not an image")
+
+    def tearDown(self):
+        shutil.rmtree(self.tmp)
+
+    def read(self, path):
+        import rosbag
+        with rosbag.Bag(path) as bag:
+            return [(topic, msg, t) for topic, msg, t in bag.read_messages()]
+
+    def test_round_trip_rgb_with_shift(self):
+        bag_path = os.path.join(self.tmp, "out.bag")
+        with contextlib.redirect_stdout(io.StringIO()):
+            code = images_to_bag.main([self.folder, bag_path, "--rate", "5", "--encoding", "rgb8", "--topic", "/cam/img",
+                                       "--frame-id", "cam", "--start-time", "100", "--shift-px", "-1"])
+        self.assertEqual(code, 0)
+        messages = self.read(bag_path)
+        self.assertEqual(len(messages), 3)
+        for k, (topic, msg, t) in enumerate(messages):
+            self.assertEqual(topic, "/cam/img")
+            self.assertEqual(msg.header.frame_id, "cam")
+            self.assertEqual(msg.header.seq, k)
+            self.assertAlmostEqual(msg.header.stamp.to_sec(), 100.0 + 0.2 * k, places=6)
+            self.assertEqual(t, msg.header.stamp)
+            self.assertEqual((msg.width, msg.height, msg.step, msg.encoding), (6, 4, 18, "rgb8"))
+            pixels = np.frombuffer(msg.data, np.uint8).reshape(4, 6, 3)
+            value = 10 * (k + 1)            # a.png, b.png, c.png
+            np.testing.assert_array_equal(pixels[0, 0], (value + 1, 0, value))   # RGB order
+            # shifted left by one: the distinct column moved from x=5 to x=4 and was replicated at x=5
+            np.testing.assert_array_equal(pixels[0, 4], (202, 201, 200))
+            np.testing.assert_array_equal(pixels[0, 5], (202, 201, 200))
+            np.testing.assert_array_equal(pixels[0, 3], (value + 1, 0, value))
+
+    def test_mono_and_frame_selection(self):
+        bag_path = os.path.join(self.tmp, "mono.bag")
+        with contextlib.redirect_stdout(io.StringIO()):
+            code = images_to_bag.main([self.folder, bag_path, "--encoding", "mono8", "--frames", "2,0"])
+        self.assertEqual(code, 0)
+        messages = self.read(bag_path)
+        self.assertEqual([m.encoding for _, m, _ in messages], ["mono8", "mono8"])
+        gray = [np.frombuffer(m.data, np.uint8).reshape(4, 6)[0, 0] for _, m, _ in messages]
+        expected = [self.cv2.cvtColor(np.array([[[v, 0, v + 1]]], np.uint8), self.cv2.COLOR_BGR2GRAY)[0, 0]
+                    for v in (30, 10)]
+        self.assertEqual(gray, expected)
+        self.assertEqual(messages[0][1].step, 6)
+
+    def test_unreadable_image_fails_without_leaving_a_bag(self):
+        with open(os.path.join(self.folder, "d.png"), "w") as f:
+            f.write("this is not a png")
+        bag_path = os.path.join(self.tmp, "broken.bag")
+        with contextlib.redirect_stderr(io.StringIO()) as err:
+            code = images_to_bag.main([self.folder, bag_path])
+        self.assertEqual(code, 2)
+        self.assertIn("d.png", err.getvalue())
+        self.assertFalse(os.path.exists(bag_path))
+        self.assertFalse(os.path.exists(bag_path + ".tmp"))
+
+    def test_missing_and_empty_folders(self):
+        empty = os.path.join(self.tmp, "empty")
+        os.makedirs(empty)
+        with contextlib.redirect_stderr(io.StringIO()):
+            self.assertEqual(images_to_bag.main([empty, os.path.join(self.tmp, "x.bag")]), 2)
+            self.assertEqual(images_to_bag.main([os.path.join(self.tmp, "nope"), os.path.join(self.tmp, "x.bag")]), 2)
+
+    def test_images_of_different_sizes_are_refused(self):
+        self.cv2.imwrite(os.path.join(self.folder, "z.png"), np.zeros((5, 6, 3), np.uint8))
+        with contextlib.redirect_stderr(io.StringIO()):
+            self.assertEqual(images_to_bag.main([self.folder, os.path.join(self.tmp, "x.bag")]), 2)
+
+
+if __name__ == "__main__":
+    unittest.main()

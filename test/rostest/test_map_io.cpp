@@ -1,0 +1,348 @@
+// The map file (src/ros/map_io.*): round trip, the streaming writer's flush/rename contract, a writer
+// killed mid-recording, and a clear MapError for every kind of bad file.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include <rosbag/bag.h>
+#include <sensor_msgs/image_encodings.h>
+#include <std_msgs/String.h>
+
+#include "ros/map_io.h"
+
+namespace along_route_localization
+{
+namespace
+{
+
+class MapIoTest : public ::testing::Test
+{
+protected:
+  void SetUp() override
+  {
+    char pattern[] = "/tmp/along_route_map_io_XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    dir_ = pattern;
+  }
+  void TearDown() override
+  {
+    const std::string command = "rm -rf '" + dir_ + "'";
+    ASSERT_EQ(std::system(command.c_str()), 0);
+  }
+  std::string path(const std::string& name) const { return dir_ + "/" + name; }
+
+  static cv::Mat randomKeyframe(cv::RNG& rng, int width = 64, int height = 32)
+  {
+    cv::Mat image(height, width, CV_8UC1);
+    rng.fill(image, cv::RNG::UNIFORM, 0, 256);
+    return image;
+  }
+
+  static bool exists(const std::string& file)
+  {
+    struct stat info;
+    return ::stat(file.c_str(), &info) == 0;
+  }
+
+  static std::string readAll(const std::string& file)
+  {
+    std::ifstream in(file, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+
+  static void writeAll(const std::string& file, const std::string& bytes)
+  {
+    std::ofstream out(file, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+
+  /// The MapError message of readMap(file), or "" when it reads.
+  static std::string readError(const std::string& file)
+  {
+    try
+    {
+      readMap(file);
+    }
+    catch (const MapError& e)
+    {
+      return e.what();
+    }
+    return "";
+  }
+
+  std::string writeTestMap(const std::string& name, int keyframes, uint64_t seed = 42)
+  {
+    cv::RNG rng(seed);
+    RouteMap map{ PreprocessingParams() };
+    for (int k = 0; k < keyframes; ++k)
+      map.addKeyframe(randomKeyframe(rng), 1000000000LL * (k + 1) + 7);
+    writeMap(path(name), map);
+    return path(name);
+  }
+
+  std::string dir_;
+};
+
+std_msgs::String text(const std::string& data)
+{
+  std_msgs::String msg;
+  msg.data = data;
+  return msg;
+}
+
+TEST_F(MapIoTest, RoundTripKeepsBytesStampsAndParameters)
+{
+  PreprocessingParams params;
+  params.normalization = NormalizationMethod::kDivisive;
+  params.filter_window = 9;
+  params.sky_fraction = 0.25;
+  cv::RNG rng(7);
+  RouteMap map(params);
+  for (int k = 0; k < 5; ++k)
+    map.addKeyframe(randomKeyframe(rng), 1600000000LL * 1000000000LL + k * 100000000LL);
+  writeMap(path("map.bag"), map);
+
+  const RouteMap read = readMap(path("map.bag"));
+  EXPECT_TRUE(read.params() == params);
+  ASSERT_EQ(read.size(), 5u);
+  for (size_t k = 0; k < 5; ++k)
+  {
+    EXPECT_EQ(read.stampNs(k), map.stampNs(k));
+    EXPECT_EQ(0, std::memcmp(read.keyframe(k), map.keyframe(k), map.keyframeBytes())) << "keyframe " << k;
+  }
+  EXPECT_FALSE(exists(path("map.bag.active")));
+}
+
+TEST_F(MapIoTest, EachFlushLeavesACompleteMapUnderTheFinalName)
+{
+  const std::string file = writeTestMap("map.bag", 3);  // an older map under the same name
+  cv::RNG rng(1);
+  MapWriter writer(file, PreprocessingParams());
+  EXPECT_TRUE(exists(file + ".active"));
+  EXPECT_EQ(readMap(file).size(), 3u) << "the old map stays until the first keyframe is flushed";
+
+  for (int k = 0; k < 4; ++k)
+    writer.add(keyframeMessage(randomKeyframe(rng), 10 + k));
+  EXPECT_EQ(readMap(file).size(), 3u) << "nothing is written before flush()";
+  writer.flush();
+  EXPECT_EQ(readMap(file).size(), 4u);
+  EXPECT_FALSE(exists(file + ".active"));
+
+  for (int k = 0; k < 2; ++k)
+    writer.add(keyframeMessage(randomKeyframe(rng), 20 + k));
+  writer.flush();
+  const RouteMap appended = readMap(file);
+  ASSERT_EQ(appended.size(), 6u);
+  EXPECT_EQ(appended.stampNs(3), 13);
+  EXPECT_EQ(appended.stampNs(4), 20);
+  writer.close();
+  EXPECT_EQ(writer.written(), 6u);
+  EXPECT_EQ(readMap(file).size(), 6u);
+  EXPECT_FALSE(exists(file + ".active"));
+  EXPECT_THROW(writer.add(keyframeMessage(randomKeyframe(rng), 30)), MapError);
+}
+
+TEST_F(MapIoTest, AKilledWriterLeavesEverythingUpToTheLastFlush)
+{
+  const std::string file = path("killed.bag");
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0)
+  {
+    cv::RNG rng(3);
+    MapWriter writer(file, PreprocessingParams());
+    for (int k = 0; k < 10; ++k)
+      writer.add(keyframeMessage(randomKeyframe(rng), 1000 + k));
+    writer.flush();
+    for (int k = 10; k < 15; ++k)
+      writer.add(keyframeMessage(randomKeyframe(rng), 1000 + k));
+    raise(SIGKILL);  // no destructor, no close
+    _exit(0);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFSIGNALED(status));
+  const RouteMap map = readMap(file);
+  ASSERT_EQ(map.size(), 10u);
+  for (size_t k = 0; k < 10; ++k)
+    EXPECT_EQ(map.stampNs(k), 1000 + static_cast<int64_t>(k));
+}
+
+TEST_F(MapIoTest, MapOrderSurvivesStampsThatJumpBackOrAreZero)
+{
+  const std::vector<int64_t> stamps = { 5000000000LL, 3000000000LL, 0, 0, 4000000000LL };
+  cv::RNG rng(5);
+  RouteMap map{ PreprocessingParams() };
+  for (int64_t stamp : stamps)
+    map.addKeyframe(randomKeyframe(rng), stamp);
+  writeMap(path("map.bag"), map);
+  const RouteMap read = readMap(path("map.bag"));
+  ASSERT_EQ(read.size(), stamps.size());
+  for (size_t k = 0; k < stamps.size(); ++k)
+  {
+    EXPECT_EQ(read.stampNs(k), stamps[k]);
+    EXPECT_EQ(0, std::memcmp(read.keyframe(k), map.keyframe(k), map.keyframeBytes())) << "keyframe " << k;
+  }
+}
+
+TEST_F(MapIoTest, MissingEmptyDirectoryAndForeignFilesAreNamed)
+{
+  EXPECT_NE(readError(path("none.bag")).find("does not exist"), std::string::npos);
+  writeAll(path("left.bag.active"), "x");
+  EXPECT_NE(readError(path("left.bag")).find("rosbag reindex"), std::string::npos) << readError(path("left.bag"));
+  writeAll(path("empty.bag"), "");
+  EXPECT_NE(readError(path("empty.bag")).find("is empty"), std::string::npos);
+  EXPECT_NE(readError(dir_).find("is a directory"), std::string::npos);
+  writeAll(path("text.bag"), "keyframe,stamp\n1,2\n");
+  EXPECT_NE(readError(path("text.bag")).find("not a rosbag"), std::string::npos);
+  writeAll(path("short.bag"), "#ROSBAG");
+  EXPECT_NE(readError(path("short.bag")).find("truncated"), std::string::npos);
+  EXPECT_NE(readError("").find("no map file"), std::string::npos);
+}
+
+TEST_F(MapIoTest, TruncatedMapsAreRefusedAtEveryLength)
+{
+  const std::string bytes = readAll(writeTestMap("map.bag", 4));
+  ASSERT_GT(bytes.size(), 4u * 2048u);
+  int refused = 0;
+  for (size_t length = 13; length < bytes.size(); length += 61)
+  {
+    writeAll(path("cut.bag"), bytes.substr(0, length));
+    const std::string error = readError(path("cut.bag"));
+    EXPECT_FALSE(error.empty()) << "a map cut at " << length << " of " << bytes.size() << " bytes was read";
+    EXPECT_NE(error.find("cut.bag"), std::string::npos) << error;
+    refused += !error.empty();
+  }
+  EXPECT_GT(refused, 100);
+}
+
+TEST_F(MapIoTest, CorruptBytesGiveMapErrorOrAMapNeverACrash)
+{
+  const std::string bytes = readAll(writeTestMap("map.bag", 3));
+  std::string broken = bytes;
+  broken[13] = '\xff';  // the length of the bag header record
+  broken[14] = '\xff';
+  broken[15] = '\xff';
+  writeAll(path("header.bag"), broken);
+  EXPECT_FALSE(readError(path("header.bag")).empty());
+
+  for (size_t position = 13; position < bytes.size(); position += 37)
+  {
+    broken = bytes;
+    broken[position] = static_cast<char>(~broken[position]);
+    writeAll(path("flipped.bag"), broken);
+    try
+    {
+      const RouteMap map = readMap(path("flipped.bag"));
+      EXPECT_EQ(map.size(), 3u) << "byte " << position;  // a flipped pixel: still a 3-keyframe map
+    }
+    catch (const MapError&)
+    {
+    }
+  }
+}
+
+TEST_F(MapIoTest, BagsThatAreNotMapsAreNamedForWhatTheyLack)
+{
+  const PreprocessingParams params;
+  cv::RNG rng(9);
+  {
+    rosbag::Bag bag(path("no_keyframes.bag"), rosbag::bagmode::Write);
+    bag.write(kMapPreprocessingTopic, ros::TIME_MIN, text(params.serialize()));
+  }
+  EXPECT_NE(readError(path("no_keyframes.bag")).find("holds no keyframes"), std::string::npos);
+  {
+    rosbag::Bag bag(path("no_params.bag"), rosbag::bagmode::Write);
+    bag.write(kMapKeyframesTopic, ros::TIME_MIN, keyframeMessage(randomKeyframe(rng), 1));
+  }
+  EXPECT_NE(readError(path("no_params.bag")).find("no preprocessing parameters"), std::string::npos);
+  {
+    rosbag::Bag bag(path("bad_params.bag"), rosbag::bagmode::Write);
+    bag.write(kMapPreprocessingTopic, ros::TIME_MIN, text("output_width=64;output_height=banana"));
+    bag.write(kMapKeyframesTopic, ros::TIME_MIN, keyframeMessage(randomKeyframe(rng), 1));
+  }
+  EXPECT_NE(readError(path("bad_params.bag")).find("invalid preprocessing parameters"), std::string::npos);
+  {
+    rosbag::Bag bag(path("sizes.bag"), rosbag::bagmode::Write);
+    bag.write(kMapPreprocessingTopic, ros::TIME_MIN, text(params.serialize()));
+    bag.write(kMapKeyframesTopic, ros::Time(1), keyframeMessage(randomKeyframe(rng), 1));
+    bag.write(kMapKeyframesTopic, ros::Time(2), keyframeMessage(randomKeyframe(rng, 32, 16), 2));
+  }
+  const std::string sizes = readError(path("sizes.bag"));
+  EXPECT_NE(sizes.find("keyframe 1 is 32x16 px"), std::string::npos) << sizes;
+  EXPECT_NE(sizes.find("inconsistent keyframe sizes"), std::string::npos) << sizes;
+  {
+    rosbag::Bag bag(path("color.bag"), rosbag::bagmode::Write);
+    bag.write(kMapPreprocessingTopic, ros::TIME_MIN, text(params.serialize()));
+    sensor_msgs::ImagePtr color = keyframeMessage(randomKeyframe(rng), 1);
+    color->encoding = sensor_msgs::image_encodings::BGR8;
+    bag.write(kMapKeyframesTopic, ros::Time(1), color);
+  }
+  EXPECT_NE(readError(path("color.bag")).find("encoding 'bgr8'"), std::string::npos);
+  {
+    rosbag::Bag bag(path("strings.bag"), rosbag::bagmode::Write);
+    bag.write(kMapPreprocessingTopic, ros::TIME_MIN, text(params.serialize()));
+    bag.write(kMapKeyframesTopic, ros::Time(1), text("not an image"));
+  }
+  EXPECT_NE(readError(path("strings.bag")).find("expected sensor_msgs/Image"), std::string::npos);
+  {
+    rosbag::Bag bag(path("future.bag"), rosbag::bagmode::Write);
+    bag.write(kMapInfoTopic, ros::TIME_MIN, text("format=2;writer=tomorrow"));
+    bag.write(kMapPreprocessingTopic, ros::TIME_MIN, text(params.serialize()));
+    bag.write(kMapKeyframesTopic, ros::Time(1), keyframeMessage(randomKeyframe(rng), 1));
+  }
+  EXPECT_NE(readError(path("future.bag")).find("map format 2"), std::string::npos);
+}
+
+TEST_F(MapIoTest, WriterRefusesKeyframesThatDoNotMatchItsParameters)
+{
+  cv::RNG rng(11);
+  MapWriter writer(path("map.bag"), PreprocessingParams());
+  EXPECT_THROW(writer.add(keyframeMessage(randomKeyframe(rng, 32, 16), 1)), MapError);
+  sensor_msgs::ImagePtr color = keyframeMessage(randomKeyframe(rng), 1);
+  color->encoding = sensor_msgs::image_encodings::BGR8;
+  EXPECT_THROW(writer.add(color), MapError);
+  writer.close();
+  EXPECT_FALSE(exists(path("map.bag"))) << "nothing recorded, nothing written";
+  EXPECT_FALSE(exists(path("map.bag.active")));
+  EXPECT_THROW(MapWriter(path("no/such/dir/map.bag"), PreprocessingParams()), MapError);
+}
+
+TEST(MapIo, ParameterDifferenceNamesTheFieldsThatDiffer)
+{
+  PreprocessingParams a, b;
+  b.output_width = 32;
+  b.sky_fraction = 0.25;
+  const std::string difference = preprocessingDifference(a, b);
+  EXPECT_NE(difference.find("output_width: 64 vs 32"), std::string::npos) << difference;
+  EXPECT_NE(difference.find("sky_fraction: 0 vs 0.25"), std::string::npos) << difference;
+  EXPECT_EQ(difference.find("patch_size"), std::string::npos) << difference;
+  EXPECT_EQ(preprocessingDifference(a, a), "");
+}
+
+TEST(MapIo, ParametersTopicSitsNextToTheImageTopic)
+{
+  EXPECT_EQ(preprocessingParamsTopic("/image_preprocessed"), "/preprocessing_params");
+  EXPECT_EQ(preprocessingParamsTopic("/robot/front/image_preprocessed"), "/robot/front/preprocessing_params");
+}
+
+}  // namespace
+}  // namespace along_route_localization
+
+int main(int argc, char** argv)
+{
+  ::testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
