@@ -1,4 +1,5 @@
 // Step 4 (online_dtw.h): accumulated cost, backtracked path and the match on hand-made cost matrices.
+#include <algorithm>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -50,14 +51,15 @@ const std::vector<int> kStopAndGo = { 0, 1, 2, 2, 3, 5, 7, 8 };
 
 TEST(OnlineDtw, FollowsStopAndGo)
 {
-  // The only all-zero path is the one laid out; it pays one stop (0.3) and two (1,2) steps
-  // (1 * 0.05 each): 0.4 in total, 0.4 / 8 rows = 0.05 per row. Every other path crosses a 1.
+  // The only all-zero path is the one laid out. Its stop 2 -> 2 follows a move, so it is free; it pays
+  // only the two (1,2) steps (1 * 0.05 each): 0.1 in total, 0.1 / 8 rows = 0.0125 per row. Every other
+  // path crosses a 1.
   arl::CostRingBuffer buffer(8, 10);
   appendRows(buffer, onesWithZeroPath(10, kStopAndGo));
   arl::OnlineDtw dtw(handParams(2));
   const arl::SequenceMatch match = dtw.match(buffer, 0, 10, 8, true);
   EXPECT_EQ(8, match.keyframe);
-  EXPECT_NEAR(0.05f, match.cost, 1e-6);
+  EXPECT_NEAR(0.1f / 8, match.cost, 1e-6);
   EXPECT_EQ(8, match.rows);
   ASSERT_EQ(kStopAndGo.size(), match.path.size());
   for (size_t r = 0; r < kStopAndGo.size(); ++r)
@@ -66,15 +68,25 @@ TEST(OnlineDtw, FollowsStopAndGo)
 
 TEST(OnlineDtw, AccumulatedRowMatchesHandRecursion)
 {
-  // A_7(i) / 8 from the recursion of the header (worked with a plain loop outside the code):
-  // e.g. A_7(9) = 1 + A_6(7) + 0.05 = 1 + 0.4 + 0.05 = 1.45; A_7(5) = 0.35 + 2 * (1 + 0.3) = 2.95
-  // (the path to keyframe 5 at row 5 costs 0.3 + 0.05, then stops twice on ones).
+  // A_7(i) = min(M_7(i), S_7(i)), divided by 8, from the recursion of the header (worked by hand and
+  // checked with a plain loop outside the code). A stop is free after a move, 0.3 after a stop.
+  //   A_7(0) = park on 0 from row 0: 7 ones + 6 repeated stops (the first is free) = 7 + 1.8 = 8.8
+  //   A_7(1) = 0 1 (zeros), then park: 6 ones + 5 * 0.3 = 7.5
+  //   A_7(2) = the zero path to 2 2 at row 3 (its stop is the free one), then 4 stops on ones, each
+  //            after a stop: 4 + 4 * 0.3 = 5.2
+  //   A_7(3) = the zero path to 3 at row 4, then 3 stops on ones: 3 + 2 * 0.3 = 3.6
+  //   A_7(4) = the zero path to 3 at row 4, then stop, (1,1), stop on ones, both stops free: 3.0
+  //   A_7(5) = the zero path to 5 at row 5 (0.05), then 2 stops on ones: 0.05 + 2 + 0.3 = 2.35
+  //   A_7(6) = 1 + M_6(6) = 1 + (1 + A_5(5)) = 1 + 1 + 0.05 = 2.05
+  //   A_7(7) = 1 + M_6(7) = 1 + 0.1 = 1.1 (one free stop on a one after the zero at row 6)
+  //   A_7(8) = 0.1 (FollowsStopAndGo)
+  //   A_7(9) = 1 + A_6(7) + 0.05 = 1 + 0.1 + 0.05 = 1.15
   arl::CostRingBuffer buffer(8, 10);
   appendRows(buffer, onesWithZeroPath(10, kStopAndGo));
   arl::OnlineDtw dtw(handParams(2));
   dtw.match(buffer, 0, 10, 8, false);
-  const float expected[10] = { 9.1f / 8, 7.8f / 8, 5.5f / 8, 4.2f / 8, 3.9f / 8,
-                               2.95f / 8, 2.65f / 8, 1.7f / 8, 0.4f / 8, 1.45f / 8 };
+  const float expected[10] = { 8.8f / 8, 7.5f / 8, 5.2f / 8, 3.6f / 8, 3.0f / 8,
+                               2.35f / 8, 2.05f / 8, 1.1f / 8, 0.1f / 8, 1.15f / 8 };
   const std::vector<float>& accumulated = dtw.lastAccumulated();
   ASSERT_EQ(10u, accumulated.size());
   for (int i = 0; i < 10; ++i)
@@ -83,12 +95,13 @@ TEST(OnlineDtw, AccumulatedRowMatchesHandRecursion)
 
 TEST(OnlineDtw, SecondCostRespectsExclusionRadius)
 {
-  // Best end 8 (A = 0.4). Others: A_7(9) = 1.45, A_7(7) = 1.7, A_7(6) = 2.65, A_7(5) = 2.95.
-  // radius 0 -> best outside {8} is keyframe 9: 1.45 / 8; radius 1 -> outside [7, 9]: keyframe 6,
-  // 2.65 / 8; radius 2 -> outside [6, 10]: keyframe 5, 2.95 / 8; radius 9 -> nothing left.
+  // Best end 8 (A = 0.1). Others (AccumulatedRowMatchesHandRecursion): A_7(9) = 1.15, A_7(7) = 1.1,
+  // A_7(6) = 2.05, A_7(5) = 2.35, A_7(4) = 3.0, A_7(0..3) larger.
+  // radius 0 -> best outside {8} is keyframe 7 (1.1 < 1.15): 1.1 / 8; radius 1 -> outside [7, 9]:
+  // keyframe 6, 2.05 / 8; radius 2 -> outside [6, 10]: keyframe 5, 2.35 / 8; radius 9 -> nothing left.
   arl::CostRingBuffer buffer(8, 10);
   appendRows(buffer, onesWithZeroPath(10, kStopAndGo));
-  const float expected[3] = { 1.45f / 8, 2.65f / 8, 2.95f / 8 };
+  const float expected[3] = { 1.1f / 8, 2.05f / 8, 2.35f / 8 };
   for (int radius = 0; radius < 3; ++radius)
   {
     arl::OnlineDtw dtw(handParams(radius));
@@ -104,7 +117,7 @@ TEST(OnlineDtw, SecondCostRespectsExclusionRadius)
 TEST(OnlineDtw, UsesOnlyTheNewestRows)
 {
   // rows = 3: only frames 5..7 (keyframes 5, 7, 8) count: one (1,2) step -> 0.05 / 3.
-  // rows = 20 > size: all 8 rows, as in FollowsStopAndGo.
+  // rows = 20 > size: all 8 rows, as in FollowsStopAndGo: one free stop and two (1,2) steps -> 0.1 / 8.
   arl::CostRingBuffer buffer(8, 10);
   appendRows(buffer, onesWithZeroPath(10, kStopAndGo));
   arl::OnlineDtw dtw(handParams(2));
@@ -118,15 +131,17 @@ TEST(OnlineDtw, UsesOnlyTheNewestRows)
   EXPECT_EQ(8, three.path[2]);
   const arl::SequenceMatch all = dtw.match(buffer, 0, 10, 20, true);
   EXPECT_EQ(8, all.rows);
-  EXPECT_NEAR(0.05f, all.cost, 1e-6);
+  EXPECT_NEAR(0.1f / 8, all.cost, 1e-6);
 }
 
 TEST(OnlineDtw, StopPenaltyKeepsThePathFromParking)
 {
   // 6 frames x 10 keyframes: keyframe 2 costs 0 in every row (a featureless keyframe under plain SAD),
   // the true diagonal 3..8 costs 0.1 per row, the rest 1.
-  // stop 0.3: parking on 2 costs 5 * 0.3 = 1.5; the best path starts on keyframe 2 (0), steps (1,2) to
-  // 4 (0.05 + 0.1) and follows the diagonal to 8 (4 * 0.1): 0.55 -> end 8, 0.55 / 6.
+  // stop 0.3: parking on 2 makes 5 stops; the first follows the start and is free, the other 4 each
+  // follow a stop: 4 * 0.3 = 1.2 (A_5(2), nothing reaches 2 cheaper). The best path starts on keyframe
+  // 2 (0), steps (1,2) to 4 (0.05 + 0.1) and follows the diagonal to 8 (4 * 0.1): 0.55 < 1.2
+  // -> end 8, 0.55 / 6.
   // stop 0: parking on 2 costs nothing and wins -> end 2, cost 0.
   std::vector<std::vector<float>> matrix(6, std::vector<float>(10, 1.0f));
   for (int r = 0; r < 6; ++r)
@@ -140,6 +155,7 @@ TEST(OnlineDtw, StopPenaltyKeepsThePathFromParking)
   const arl::SequenceMatch moving = with_penalty.match(buffer, 0, 10, 6, true);
   EXPECT_EQ(8, moving.keyframe);
   EXPECT_NEAR(0.55f / 6, moving.cost, 1e-6);
+  EXPECT_NEAR(1.2f / 6, with_penalty.lastAccumulated()[2], 1e-5);  // the parked path
   ASSERT_EQ(6u, moving.path.size());
   const int expected_path[6] = { 2, 4, 5, 6, 7, 8 };
   for (int r = 0; r < 6; ++r)
@@ -158,7 +174,11 @@ TEST(OnlineDtw, MatchCanLeaveTheStepRangeAndRecover)
   // K = 8, 40 keyframes. First 8 frames on the diagonal 0..7 -> match 7. Then 5 frames at keyframes
   // 30..34 (a relocation no (1,k) step can follow). The buffer now holds frames at 5, 6, 7 and 30..34.
   // Continuing the old path costs 5 ones (5); the new path crosses 3 ones in the old rows and then
-  // zeros, all (1,1) steps (3): end 34, far outside [7, 7 + s], cost 3 / 8 = 0.375.
+  // zeros (3): end 34, far outside [7, 7 + s], cost 3 / 8 = 0.375.
+  // A single stop is free, so in the old rows (all ones where the new path can be) five paths tie at
+  // 3 + 0 penalty: 27 28 29, 28 28 29, 28 29 29, 28 29 30 and 29 29 30 (the last two then stop on 30
+  // at row 3, again free); every other start pays a repeated stop or a skip. The header does not say
+  // which tied path backtracking returns, so rows 0..2 must be one of these five; rows 3..7 are 30..34.
   arl::CostRingBuffer buffer(8, 40);
   appendRows(buffer, onesWithZeroPath(40, { 0, 1, 2, 3, 4, 5, 6, 7 }));
   arl::OnlineDtw dtw(handParams(5));
@@ -174,17 +194,25 @@ TEST(OnlineDtw, MatchCanLeaveTheStepRangeAndRecover)
   EXPECT_EQ(34, after.keyframe);
   EXPECT_NEAR(0.375f, after.cost, 1e-6);
   ASSERT_EQ(8u, after.path.size());
-  for (int r = 0; r < 8; ++r)
+  const std::vector<std::vector<int>> tied = { { 27, 28, 29 }, { 28, 28, 29 }, { 28, 29, 29 },
+                                               { 28, 29, 30 }, { 29, 29, 30 } };
+  const std::vector<int> old_rows(after.path.begin(), after.path.begin() + 3);
+  EXPECT_NE(tied.end(), std::find(tied.begin(), tied.end(), old_rows))
+      << "rows 0..2: " << old_rows[0] << " " << old_rows[1] << " " << old_rows[2];
+  for (int r = 3; r < 8; ++r)
     EXPECT_EQ(27 + r, after.path[r]) << "row " << r;
 }
 
 TEST(OnlineDtw, MissingCostIsUsedOutsideTheBands)
 {
   // Row 0: [0, 10) all 0.5. Row 1: band [2, 5) = 0 0 0. Row 2: band [3, 6) = 0.2 0.1 0.3.
-  // missing 1: A_1(i) = 0.5 for i in 2..4 (from A_0(i-1)), A_1(0) = 1 + 0.8 = 1.8, A_1(1) = 1.5,
-  // A_1(i >= 5) = 1.5. A_2(4) = 0.1 + A_1(3) = 0.6 (best), A_2(3) = 0.7, A_2(5) = 0.8,
-  // A_2(6) = 1 + A_1(4) + 0.05 = 1.55, A_2(0) = 1 + A_1(0) + 0.3 = 3.1, A_2(1) = 1 + 1.8 = 2.8.
-  // missing 5: A_1(0) = 5.8, A_2(0) = 5 + 6.1 = 11.1; A_2(6) = 5 + 0.55 = 5.55.
+  // M_0 = 0.5 everywhere. missing 1: row 1 costs 1 0 0 0 1 ... (keyframes 0..9); a step from row 0 is
+  // a free stop or a move, so M_1(i) = S_1(i) = C_1(i) + 0.5 (M_1(0) = inf): A_1(i) = 0.5 for i in
+  // 2..4, 1.5 elsewhere. S_1(0) = 1.5 is the only way to stay on 0.
+  // A_2(4) = 0.1 + A_1(3) = 0.6 (best), A_2(3) = 0.2 + A_1(2) = 0.7, A_2(5) = 0.3 + A_1(4) = 0.8,
+  // A_2(6) = 1 + A_1(4) + 0.05 = 1.55, A_2(0) = 1 + S_1(0) + 0.3 = 2.8 (the second stop on 0 pays),
+  // A_2(1) = 1 + 1.5 = 2.5 (0 0 1 or 0 1 1, one free stop; 1 1 1 would pay 0.3).
+  // missing 5: S_1(0) = 5.5, A_2(0) = 5 + 5.5 + 0.3 = 10.8; A_2(6) = 5 + A_1(4) + 0.05 = 5.55.
   arl::CostRingBuffer buffer(3, 10);
   float* row0 = buffer.appendRow(0, 10);
   for (int j = 0; j < 10; ++j)
@@ -201,8 +229,8 @@ TEST(OnlineDtw, MissingCostIsUsedOutsideTheBands)
   EXPECT_EQ(4, match.keyframe);
   EXPECT_NEAR(0.6f / 3, match.cost, 1e-6);
   ASSERT_EQ(10u, dtw.lastAccumulated().size());
-  EXPECT_NEAR(3.1f / 3, dtw.lastAccumulated()[0], 1e-5);
-  EXPECT_NEAR(2.8f / 3, dtw.lastAccumulated()[1], 1e-5);
+  EXPECT_NEAR(2.8f / 3, dtw.lastAccumulated()[0], 1e-5);
+  EXPECT_NEAR(2.5f / 3, dtw.lastAccumulated()[1], 1e-5);
   EXPECT_NEAR(0.7f / 3, dtw.lastAccumulated()[3], 1e-5);
   EXPECT_NEAR(0.8f / 3, dtw.lastAccumulated()[5], 1e-5);
   EXPECT_NEAR(1.55f / 3, dtw.lastAccumulated()[6], 1e-5);
@@ -211,15 +239,16 @@ TEST(OnlineDtw, MissingCostIsUsedOutsideTheBands)
   expensive.missing_cost = 5.0f;
   dtw.setParams(expensive);
   EXPECT_EQ(4, dtw.match(buffer, 0, 10, 3).keyframe);
-  EXPECT_NEAR(11.1f / 3, dtw.lastAccumulated()[0], 1e-5);
+  EXPECT_NEAR(10.8f / 3, dtw.lastAccumulated()[0], 1e-5);
   EXPECT_NEAR(5.55f / 3, dtw.lastAccumulated()[6], 1e-5);
 }
 
 TEST(OnlineDtw, MaxStepLimitsTheSpeed)
 {
   // 4 frames at keyframes 0, 3, 6, 9 (three keyframes per frame). With s = 3 the zero path is
-  // reachable at 2 * 0.05 per (1,3) step: 3 * 0.1 = 0.3 -> end 9, 0.3 / 4. With s = 2 no two zeros
-  // are linked by a step of at most 2, so every path crosses at least 3 ones: cost >= 3 / 4.
+  // reachable at 2 * 0.05 per (1,3) step, no stops: 3 * 0.1 = 0.3 -> end 9, 0.3 / 4. With s = 2 no two
+  // zeros are linked by a step of at most 2, so every path crosses at least 3 ones: cost >= 3 / 4
+  // (reached exactly, e.g. by 0 0 1 1: two single stops, both free).
   arl::CostRingBuffer buffer(4, 12);
   appendRows(buffer, onesWithZeroPath(12, { 0, 3, 6, 9 }));
   arl::DtwParams fast = handParams(2);
