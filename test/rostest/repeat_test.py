@@ -1,0 +1,139 @@
+#!/usr/bin/python3
+"""Repeat: a map taught with teach.launch, loaded into repeat.launch's localizer through ~load_map, then
+played repeat drives: one Localization per frame, keyframes near the ground truth, the homing angle's
+sign on a shifted stretch, dynamic_reconfigure mid-stream, the debug image, and bad map paths."""
+
+import os
+import shutil
+import tempfile
+import threading
+import unittest
+
+import rospy
+import rostest
+from dynamic_reconfigure.client import Client as ReconfigureClient
+from sensor_msgs.msg import Image
+from std_srvs.srv import Trigger
+
+from along_route_localization.msg import Localization
+from along_route_localization.srv import LoadMap
+import route_fixture as fx
+
+FRAMES = 100
+SHIFT_CAMERA_PX = 8            # = 2 px of the 64 px preprocessed image (fixture SCALE = 1/4)
+SHIFTED = range(40, 80)        # teach frames played shifted in the third drive
+TRACKING = (Localization.STATUS_TRACKING, Localization.STATUS_END_OF_ROUTE)
+
+
+class RepeatTest(unittest.TestCase):
+
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('repeat_test')
+        cls.tmp = tempfile.mkdtemp(prefix='along_route_repeat_test_')
+        fx.generate_route(cls.tmp, frames=FRAMES)
+        cls.map_path = rospy.get_param('~map')
+        cls.teach = fx.read_messages(os.path.join(cls.tmp, 'teach.bag'), fx.CAMERA_TOPIC)
+        cls.repeat = fx.read_messages(os.path.join(cls.tmp, 'repeat.bag'), fx.CAMERA_TOPIC)
+        cls.truth = fx.read_ground_truth(os.path.join(cls.tmp, 'ground_truth.csv'))
+        cls.localizations = fx.Collector('/repeat/localization', Localization)
+        cls.debug_images = fx.Collector('/repeat/localization_debug_image', Image)
+        teach_preprocessed = fx.Collector('/teach/image_preprocessed', Image)
+        fx.wait_for_service('/teach/map_recorder/finish')
+        fx.wait_for_service('/repeat/localizer/load_map')
+        load_map = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)
+
+        # Teach, then load the map into the running localizer.
+        fx.play(os.path.join(cls.tmp, 'teach.bag'), {fx.CAMERA_TOPIC: '/teach_camera/image_raw'})
+        fx.wait_for(lambda: teach_preprocessed.count() >= FRAMES, 30, 'the teach drive to be preprocessed')
+        cls.finish = rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)()
+        cls.missing = load_map(os.path.join(cls.tmp, 'no_such_map.bag'))
+        cls.loaded = load_map(cls.map_path)
+
+        # First drive: the generator's repeat run (other light, stops, slow stretches, heading offsets).
+        fx.play(os.path.join(cls.tmp, 'repeat.bag'), {fx.CAMERA_TOPIC: '/repeat_camera/image_raw'})
+        fx.wait_for(lambda: cls.localizations.count() >= len(cls.repeat), 30, 'a Localization per repeat frame')
+        cls.first_drive = cls.localizations.take()
+
+        # Out-of-range values are corrected by the nodelet and the corrected values returned.
+        cls.reconfigure = ReconfigureClient('/repeat/localizer', timeout=30)
+        cls.corrected = cls.reconfigure.update_configuration({'max_shift_px': 100, 'max_step': 3, 'search_radius': 1})
+        cls.reconfigure.update_configuration({'max_shift_px': 4, 'max_step': 2, 'search_radius': 40})
+
+        # Second drive: the teach images again, with their own stamps, so time goes back as when a bag
+        # loops (the localizer restarts); frames 40..79 shifted right by 2 px (camera yawed left). Half
+        # way through, K drops to 10 rows through dynamic_reconfigure.
+        drive = [fx.shifted(m, SHIFT_CAMERA_PX) if i in SHIFTED else m for i, m in enumerate(cls.teach)]
+        shifted_bag = os.path.join(cls.tmp, 'shifted.bag')
+        fx.write_bag(shifted_bag, '/repeat_camera/image_raw', drive)
+        player = threading.Thread(target=fx.play, args=(shifted_bag,))
+        player.start()
+        fx.wait_for(lambda: cls.localizations.count() >= FRAMES // 2, 60, 'half of the second drive')
+        cls.reconfigured = cls.reconfigure.update_configuration({'ring_buffer_rows': 10})
+        player.join(120)
+        fx.wait_for(lambda: cls.localizations.count() >= FRAMES, 30, 'a Localization per frame of the second drive')
+        cls.second_drive = cls.localizations.take()
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+        fx.remove(cls.map_path)
+
+    def test_map_is_taught_and_loaded(self):
+        self.assertTrue(self.finish.success, self.finish.message)
+        self.assertTrue(self.loaded.success, self.loaded.message)
+        self.assertEqual(self.loaded.keyframes, FRAMES)
+
+    def test_missing_map_is_refused_with_its_path(self):
+        self.assertFalse(self.missing.success)
+        self.assertEqual(self.missing.keyframes, 0)
+        self.assertIn('no_such_map.bag', self.missing.message)
+
+    def test_one_localization_per_frame_with_the_camera_header(self):
+        self.assertEqual([m.header.stamp for m in self.first_drive], [m.header.stamp for m in self.repeat])
+        self.assertEqual({m.header.frame_id for m in self.first_drive}, {self.repeat[0].header.frame_id})
+
+    def test_keyframes_follow_the_ground_truth(self):
+        tracked = [(m, int(t['teach_frame'])) for m, t in zip(self.first_drive, self.truth) if m.status in TRACKING]
+        self.assertGreaterEqual(len(tracked), 0.7 * len(self.first_drive), 'too few frames tracked')
+        close = [m for m, truth in tracked if abs(m.keyframe - truth) <= 2]
+        self.assertGreaterEqual(len(close), 0.9 * len(tracked),
+                                'keyframe vs truth: %s' % [(m.keyframe, t) for m, t in tracked])
+        # The keyframe stamp is the teach frame's camera stamp.
+        for m, _ in tracked:
+            self.assertEqual(m.keyframe_stamp, self.teach[m.keyframe].header.stamp)
+
+    def test_homing_angle_turns_right_when_the_scene_moved_right(self):
+        self.assertEqual(len(self.second_drive), FRAMES)
+        by_frame = list(zip(range(FRAMES), self.second_drive))
+        shifted = [m for i, m in by_frame if i in SHIFTED and i >= SHIFTED[0] + 3 and m.status in TRACKING]
+        straight = [m for i, m in by_frame if 15 <= i < SHIFTED[0] and m.status in TRACKING]
+        # Time went back at the first frame: the localizer started over instead of tracking on.
+        self.assertEqual(self.second_drive[0].status, Localization.STATUS_INITIALIZING)
+        self.assertGreaterEqual(len(shifted), 30)
+        self.assertGreaterEqual(len(straight), 15)
+        # Content 2 px to the right: shift ~ +2 px and a right turn (REP-103: negative angle).
+        self.assertGreaterEqual(sum(1 for m in shifted if 1.5 <= m.shift <= 2.5 and m.homing_angle < 0),
+                                0.9 * len(shifted), [(m.shift, m.homing_angle) for m in shifted])
+        self.assertGreaterEqual(sum(1 for m in straight if abs(m.shift) < 0.5), 0.9 * len(straight),
+                                [m.shift for m in straight])
+
+    def test_out_of_range_values_are_corrected(self):
+        self.assertEqual(self.corrected['max_shift_px'], 31)   # (64 - 1) // 2 leaves one compared column
+        self.assertEqual(self.corrected['search_radius'], 3)   # at least max_step
+
+    def test_ring_buffer_rows_change_mid_stream(self):
+        self.assertEqual(self.reconfigured['ring_buffer_rows'], 10)
+        # Still one answer per frame, and the debug image (K rows x 4 px) shrank to the new K.
+        heights = [m.height for m in self.debug_images.snapshot()]
+        self.assertTrue(heights, 'no debug image while subscribed')
+        self.assertEqual(heights[-1], 10 * 4)
+        self.assertGreater(max(heights), 10 * 4)
+        late = self.second_drive[-20:]
+        self.assertTrue(all(m.status in TRACKING for m in late), [m.status for m in late])
+        self.assertTrue(all(abs(m.keyframe - (FRAMES - 20 + i)) <= 1 for i, m in enumerate(late)),
+                        [m.keyframe for m in late])
+
+
+if __name__ == '__main__':
+    rostest.rosrun('along_route_localization', 'repeat', RepeatTest)
