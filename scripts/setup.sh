@@ -21,14 +21,14 @@ if [ -f /opt/ros/noetic/setup.bash ]; then
   [ -f /etc/ros/rosdep/sources.list.d/20-default.list ] || as_root rosdep init || true
   rosdep update >/dev/null || true
   rosdep install --from-paths "$here" --ignore-src -y
-  as_root apt-get install -y -qq ros-noetic-rostest libbenchmark-dev python3-matplotlib python3-opencv >/dev/null
+  as_root apt-get install -y -qq ros-noetic-rostest ros-noetic-image-view libbenchmark-dev python3-matplotlib python3-opencv >/dev/null
 else
   as_root apt-get update -qq
   DEBIAN_FRONTEND=noninteractive as_root apt-get install -y -qq --no-install-recommends \
     build-essential cmake catkin python3-catkin-pkg python3-empy python3-rospkg \
     ros-core-dev libnodeletlib-dev libnodelet-dev libimage-transport-dev libcv-bridge-dev librosbag-dev \
     libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure librostest-dev python3-rostest \
-    rosbash libnodeletlib-tools libdiagnostic-updater-dev ros-nav-msgs libnav-msgs-dev ros-std-srvs libstd-srvs-dev \
+    rosbash libnodeletlib-tools ros-image-view libdiagnostic-updater-dev ros-nav-msgs libnav-msgs-dev ros-std-srvs libstd-srvs-dev \
     python3-rosbag python3-rosnode python3-rostopic python3-roslaunch python3-rosservice python3-rospy \
     python3-sensor-msgs python3-std-msgs python3-std-srvs python3-nav-msgs python3-diagnostic-msgs \
     libopencv-dev libeigen3-dev libgtest-dev libbenchmark-dev \
