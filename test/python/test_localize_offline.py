@@ -1,0 +1,119 @@
+"""localize_offline, the built C++ runner: its CSV interface on a folder pair, and bad input (missing paths,
+empty folders, unreadable images, unwritable output, bad options) giving a message and a non-zero exit."""
+
+import csv
+import os
+import shutil
+import subprocess
+import tempfile
+import unittest
+
+import numpy as np
+
+try:
+    import cv2
+except ImportError:  # pragma: no cover - depends on the machine
+    cv2 = None
+
+
+def find_runner():
+    """The localize_offline of the sourced catkin workspace (devel or install), or None."""
+    for prefix in os.environ.get('CMAKE_PREFIX_PATH', '').split(os.pathsep):
+        path = os.path.join(prefix, 'lib', 'along_route_localization', 'localize_offline')
+        if prefix and os.access(path, os.X_OK):
+            return path
+    return None
+
+
+RUNNER = find_runner()
+
+
+@unittest.skipIf(RUNNER is None or cv2 is None,
+                 'localize_offline not built in a sourced workspace (source devel/setup.bash), or no cv2')
+class LocalizeOfflineTest(unittest.TestCase):
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix='localize_offline_test_')
+        # A route of 40 frames: a random texture seen through a window sliding 16 px per frame (8 px of
+        # the 64 px preprocessed image, beyond the +-4 px shift search), so neighbours overlap but no
+        # keyframe explains its neighbour by a shift.
+        rng = np.random.RandomState(5)
+        world = cv2.resize(rng.randint(0, 256, (32, 160)).astype(np.uint8), (800, 96), interpolation=cv2.INTER_CUBIC)
+        cls.map_dir = cls.folder('map', [world[:, 16 * i:16 * i + 128] for i in range(40)])
+        cls.empty_dir = cls.folder('empty', [])
+        cls.bad_dir = os.path.join(cls.tmp, 'bad')
+        os.makedirs(cls.bad_dir)
+        with open(os.path.join(cls.bad_dir, 'a.png'), 'wb') as f:
+            f.write(b'not a png')
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    @classmethod
+    def folder(cls, name, images):
+        path = os.path.join(cls.tmp, name)
+        os.makedirs(path)
+        for i, image in enumerate(images):
+            cv2.imwrite(os.path.join(path, '%05d.png' % i), image)
+        return path
+
+    def run_runner(self, *args):
+        return subprocess.run([RUNNER, '--quiet'] + list(args), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              universal_newlines=True, timeout=120)
+
+    def test_same_route_matches_every_frame_after_initialization(self):
+        output = os.path.join(self.tmp, 'same.csv')
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        with open(output) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(len(rows), 40)
+        self.assertEqual(list(rows[0].keys())[:6],
+                         ['query_index', 'keyframe', 'confidence', 'shift_px', 'homing_angle_rad', 'status'])
+        self.assertEqual([int(r['query_index']) for r in rows], list(range(40)))
+        tracked = [r for r in rows if r['status'] in ('tracking', 'end_of_route')]
+        self.assertGreaterEqual(len(tracked), 30)
+        for r in tracked:
+            self.assertEqual(int(r['keyframe']), int(r['query_index']))
+            self.assertLess(abs(float(r['shift_px'])), 0.25)
+        for r in rows:
+            self.assertTrue(0.0 <= float(r['confidence']) <= 1.0)
+
+    def assertFails(self, result, *fragments):
+        self.assertNotEqual(result.returncode, 0)
+        self.assertGreater(result.returncode, 0, 'killed by a signal: %s' % result.stderr)
+        for fragment in fragments:
+            self.assertIn(fragment, result.stderr)
+
+    def test_missing_paths(self):
+        output = os.path.join(self.tmp, 'missing.csv')
+        self.assertFails(self.run_runner('--map', '/no/such/map', '--query', self.map_dir, '--output', output),
+                         '/no/such/map')
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', '/no/such/query', '--output', output),
+                         '/no/such/query')
+        self.assertFalse(os.path.exists(output))
+
+    def test_empty_folder(self):
+        self.assertFails(self.run_runner('--map', self.empty_dir, '--query', self.map_dir, '--output',
+                                         os.path.join(self.tmp, 'empty.csv')), self.empty_dir)
+
+    def test_unreadable_image(self):
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.bad_dir, '--output',
+                                         os.path.join(self.tmp, 'bad.csv')), 'a.png')
+
+    def test_unwritable_output(self):
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output',
+                                         '/no/such/dir/out.csv'), '/no/such/dir/out.csv')
+
+    def test_bad_options(self):
+        common = ['--map', self.map_dir, '--query', self.map_dir, '--output', os.path.join(self.tmp, 'o.csv')]
+        self.assertFails(self.run_runner(*(common + ['--method', 'foo'])), 'foo')
+        self.assertFails(self.run_runner(*(common + ['--set', 'ring_buffer_rows=0'])), 'ring_buffer_rows')
+        self.assertFails(self.run_runner(*(common + ['--set', 'no_such_parameter=1'])), 'no_such_parameter')
+        self.assertFails(self.run_runner('--map', self.map_dir), 'usage')
+
+
+if __name__ == '__main__':
+    unittest.main()
