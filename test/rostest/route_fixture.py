@@ -121,7 +121,8 @@ class Collector(object):
 class RosoutCollector(Collector):
     def __init__(self):
         from rosgraph_msgs.msg import Log
-        Collector.__init__(self, '/rosout_agg', Log)
+        # /rosout itself: every node publishes there (the aggregated topic may lag or drop).
+        Collector.__init__(self, '/rosout', Log)
 
     def matching(self, text, level=None):
         return [m for m in self.snapshot() if text in m.msg and (level is None or m.level == level)]

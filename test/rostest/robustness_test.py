@@ -1,0 +1,151 @@
+#!/usr/bin/python3
+"""Bad input at the running nodelets: each bad image is dropped with a message naming what is wrong,
+and the good frames around it still go through; a burst keeps its newest frame; the localizer unloaded
+and loaded again in its running manager localizes again."""
+
+import os
+import shutil
+import tempfile
+import time
+import unittest
+
+import numpy as np
+import rospy
+import rostest
+from nodelet.srv import NodeletLoad, NodeletUnload
+from sensor_msgs.msg import Image
+from std_srvs.srv import Trigger
+
+from along_route_localization.msg import Localization
+from along_route_localization.srv import LoadMap
+import route_fixture as fx
+
+FRAMES = 40
+
+
+def image(encoding, width, height, data, step=None):
+    msg = Image()
+    msg.encoding, msg.width, msg.height = encoding, width, height
+    msg.step = step if step is not None else (len(data) // height if height else 0)
+    msg.data = data
+    return msg
+
+
+class RobustnessTest(unittest.TestCase):
+
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('robustness_test')
+        cls.tmp = tempfile.mkdtemp(prefix='along_route_robustness_test_')
+        fx.generate_route(cls.tmp, frames=FRAMES)
+        cls.map_path = rospy.get_param('~map')
+        cls.teach = fx.read_messages(os.path.join(cls.tmp, 'teach.bag'), fx.CAMERA_TOPIC)
+        cls.rosout = fx.RosoutCollector()
+        cls.preprocessed = fx.Collector('/repeat/image_preprocessed', Image)
+        cls.localizations = fx.Collector('/repeat/localization', Localization, queue_size=10000)
+        cls.camera = rospy.Publisher('/repeat_camera/image_raw', Image, queue_size=10000)
+        cls.direct = rospy.Publisher('/repeat/image_preprocessed', Image, queue_size=100)
+        teach_preprocessed = fx.Collector('/teach/image_preprocessed', Image)
+        fx.wait_for_service('/teach/map_recorder/finish')
+        fx.wait_for_service('/repeat/localizer/load_map')
+        fx.play(os.path.join(cls.tmp, 'teach.bag'), {fx.CAMERA_TOPIC: '/teach_camera/image_raw'})
+        fx.wait_for(lambda: teach_preprocessed.count() >= FRAMES, 30, 'the teach drive to be preprocessed')
+        assert rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)().success
+        loaded = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(cls.map_path)
+        assert loaded.success, loaded.message
+        fx.wait_for(lambda: cls.camera.get_num_connections() > 0 and cls.direct.get_num_connections() > 0, 30,
+                    'the nodelets to subscribe')
+        cls.next_stamp = 5000.0
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+        fx.remove(cls.map_path)
+
+    @classmethod
+    def stamped(cls, msg):
+        msg.header.stamp = rospy.Time.from_sec(cls.next_stamp)
+        msg.header.frame_id = 'camera'
+        cls.next_stamp += 0.1
+        return msg
+
+    def good(self, index):
+        msg = self.teach[index % FRAMES]
+        return self.stamped(image(msg.encoding, msg.width, msg.height, msg.data, msg.step))
+
+    def wait_for_stamp(self, collector, stamp, what):
+        fx.wait_for(lambda: any(m.header.stamp == stamp for m in collector.snapshot()), 20, what)
+
+    def test_bad_images_are_dropped_with_a_message_and_good_ones_pass(self):
+        w, h = 32, 16
+        nan_frame = np.full((h, w), 0.5, np.float32)
+        nan_frame[3, 4] = np.nan
+        bad = [
+            ("unsupported encoding 'yuv422'", image('yuv422', w, h, bytes(w * h * 2))),
+            ('malformed', image('bgr8', 0, 0, b'')),
+            ('malformed', image('bgr8', w, h, bytes(w * h * 3), step=w)),        # step < width * 3
+            ('malformed', image('mono8', w, h, bytes(w * h - 1), step=w)),       # data too short
+            ('NaN', image('32FC1', w, h, nan_frame.tobytes(), step=w * 4)),
+        ]
+        stamps = []
+        for text, msg in bad:
+            stamps.append(self.stamped(msg).header.stamp)
+            self.camera.publish(msg)
+            good = self.good(len(stamps))
+            self.camera.publish(good)
+            self.wait_for_stamp(self.preprocessed, good.header.stamp, 'the good frame after a bad one')
+            fx.wait_for(lambda: self.rosout.matching(text), 10, 'an error naming %r' % text)
+        # An odd size is no error: 63 x 31 bgr8 becomes a 64 x 32 image.
+        odd = self.stamped(image('bgr8', 63, 31, bytes(range(256)) * (63 * 31 * 3 // 256) + bytes(63 * 31 * 3 % 256)))
+        self.camera.publish(odd)
+        self.wait_for_stamp(self.preprocessed, odd.header.stamp, 'the odd-sized frame')
+        produced = {m.header.stamp: m for m in self.preprocessed.snapshot()}
+        for stamp in stamps:
+            self.assertNotIn(stamp, produced)
+        self.assertEqual((produced[odd.header.stamp].width, produced[odd.header.stamp].height), (64, 32))
+
+    def test_frames_of_another_size_than_the_map_are_refused(self):
+        small = self.stamped(image('mono8', 32, 16, bytes(32 * 16)))
+        self.direct.publish(small)
+        fx.wait_for(lambda: self.rosout.matching('Dropping a 32x16'), 10, 'an error naming the size')
+        good = self.good(7)
+        self.camera.publish(good)
+        self.wait_for_stamp(self.localizations, good.header.stamp, 'a localization after the refused frame')
+        self.assertFalse([m for m in self.localizations.snapshot() if m.header.stamp == small.header.stamp])
+
+    def test_a_burst_keeps_its_newest_frame_in_order(self):
+        self.localizations.take()
+        burst = [self.good(i) for i in range(300)]
+        for msg in burst:
+            self.camera.publish(msg)
+        self.wait_for_stamp(self.localizations, burst[-1].header.stamp, 'the newest frame of the burst')
+        stamps = [m.header.stamp for m in self.localizations.take()]
+        self.assertEqual(stamps, sorted(stamps))
+        self.assertLessEqual(len(stamps), len(burst))
+        self.assertEqual(stamps[-1], burst[-1].header.stamp)
+
+    def test_localizer_unloaded_and_loaded_again(self):
+        manager = '/repeat/repeat_manager'
+        unloaded = rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)('/repeat/localizer')
+        self.assertTrue(unloaded.success)
+        probe = self.good(3)
+        self.camera.publish(probe)
+        self.wait_for_stamp(self.preprocessed, probe.header.stamp, 'the preprocessor to go on alone')
+        time.sleep(0.5)
+        self.assertFalse([m for m in self.localizations.snapshot() if m.header.stamp == probe.header.stamp])
+        loaded = rospy.ServiceProxy(manager + '/load_nodelet', NodeletLoad)(
+            '/repeat/localizer', 'along_route_localization/localizer', [], [], [], '')
+        self.assertTrue(loaded.success)
+        fx.wait_for_service('/repeat/localizer/load_map')
+        self.assertTrue(rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(self.map_path).success)
+        fx.wait_for(lambda: self.camera.get_num_connections() > 0, 10, 'the preprocessor')
+        time.sleep(1.0)  # the new localizer's subscription to image_preprocessed
+        sent = [self.good(i) for i in range(20)]
+        for msg in sent:
+            self.camera.publish(msg)
+            time.sleep(0.05)
+        self.wait_for_stamp(self.localizations, sent[-1].header.stamp, 'localizations from the reloaded localizer')
+
+
+if __name__ == '__main__':
+    rostest.rosrun('along_route_localization', 'robustness', RobustnessTest)
