@@ -1,0 +1,85 @@
+#!/usr/bin/python3
+"""rosbag play --clock --loop under /use_sim_time: at each loop the stamps jump back; the localizer says
+so, restarts (status initializing), and tracks the route again on the next pass."""
+
+import os
+import shutil
+import signal
+import subprocess
+import tempfile
+import time
+import unittest
+
+import rospy
+import rostest
+from sensor_msgs.msg import Image
+from std_srvs.srv import Trigger
+
+from along_route_localization.msg import Localization
+from along_route_localization.srv import LoadMap
+import route_fixture as fx
+
+FRAMES = 60
+TRACKING = (Localization.STATUS_TRACKING, Localization.STATUS_END_OF_ROUTE)
+
+
+class LoopSimTimeTest(unittest.TestCase):
+
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('loop_sim_time_test')
+        cls.tmp = tempfile.mkdtemp(prefix='along_route_loop_test_')
+        fx.generate_route(cls.tmp, frames=FRAMES)
+        cls.map_path = rospy.get_param('~map')
+        cls.repeat = fx.read_messages(os.path.join(cls.tmp, 'repeat.bag'), fx.CAMERA_TOPIC)
+        cls.truth = [int(t['teach_frame']) for t in fx.read_ground_truth(os.path.join(cls.tmp, 'ground_truth.csv'))]
+        cls.rosout = fx.RosoutCollector()
+        cls.localizations = fx.Collector('/repeat/localization', Localization, queue_size=10000)
+        teach_preprocessed = fx.Collector('/teach/image_preprocessed', Image)
+        fx.wait_for_service('/teach/map_recorder/finish')
+        fx.wait_for_service('/repeat/localizer/load_map')
+        fx.play(os.path.join(cls.tmp, 'teach.bag'), {fx.CAMERA_TOPIC: '/teach_camera/image_raw'}, extra=['--clock'])
+        fx.wait_for(lambda: teach_preprocessed.count() >= FRAMES, 30, 'the teach drive to be preprocessed')
+        assert rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)().success
+        loaded = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(cls.map_path)
+        assert loaded.success, loaded.message
+
+        player = subprocess.Popen(['rosbag', 'play', '-q', '-d', '1', '--clock', '--loop',
+                                   os.path.join(cls.tmp, 'repeat.bag'), fx.CAMERA_TOPIC + ':=/repeat_camera/image_raw'],
+                                  stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, start_new_session=True)
+        try:
+            fx.wait_for(lambda: cls.localizations.count() >= 2 * len(cls.repeat) + 10, 120, 'two loops of the drive')
+        finally:
+            player.send_signal(signal.SIGINT)
+            try:
+                player.wait(10)
+            except subprocess.TimeoutExpired:
+                player.kill()
+                player.wait(5)
+        cls.answers = cls.localizations.take()
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+        fx.remove(cls.map_path)
+
+    def test_each_loop_restarts_and_tracks_again(self):
+        first_stamp = self.repeat[0].header.stamp
+        starts = [i for i, m in enumerate(self.answers) if m.header.stamp == first_stamp]
+        self.assertGreaterEqual(len(starts), 2, 'the first frame was not answered in two loops')
+        complete = [s for s in starts[1:] if s + len(self.repeat) <= len(self.answers)]
+        self.assertTrue(complete, 'no complete second pass')
+        self.assertTrue(self.rosout.matching('Time went backwards'))
+        index = {m.header.stamp: i for i, m in enumerate(self.repeat)}
+        for start in complete:
+            # The first frame after the jump starts over instead of continuing from the route's end.
+            self.assertEqual(self.answers[start].status, Localization.STATUS_INITIALIZING)
+            loop = self.answers[start:start + len(self.repeat)]
+            tracked = [m for m in loop if m.status in TRACKING]
+            self.assertGreaterEqual(len(tracked), 0.7 * len(loop))
+            close = [m for m in tracked if abs(m.keyframe - self.truth[index[m.header.stamp]]) <= 2]
+            self.assertGreaterEqual(len(close), 0.9 * len(tracked))
+
+
+if __name__ == '__main__':
+    rostest.rosrun('along_route_localization', 'loop_sim_time', LoopSimTimeTest)
