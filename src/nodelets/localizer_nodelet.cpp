@@ -35,6 +35,7 @@
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/parameters.h"
 #include "ros/map_io.h"
+#include "ros/reconfigure.h"
 
 namespace along_route_localization
 {
@@ -111,23 +112,6 @@ uint8_t toMsgStatus(LocalizationStatus status)
       return Localization::STATUS_END_OF_ROUTE;
   }
   return Localization::STATUS_LOST;
-}
-
-LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams params)
-{
-  if (!sequenceMethodFromString(config.method, &params.method))
-    params.method = SequenceMethod::kOnlineDtw;
-  params.ring_buffer_rows = config.ring_buffer_rows;
-  params.dtw.max_step = config.max_step;
-  params.max_shift_px = config.max_shift_px;
-  params.contrast_window = config.contrast_window;
-  params.search_radius = config.search_radius;
-  params.confidence_threshold = config.confidence_threshold;
-  params.dtw.stop_penalty = static_cast<float>(config.stop_penalty);
-  params.dtw.skip_penalty = static_cast<float>(config.skip_penalty);
-  params.horizontal_fov_rad = config.horizontal_fov_deg * M_PI / 180.0;
-  params.lost_after_frames = config.lost_after_frames;
-  return params;
 }
 
 std::string toText(const XmlRpc::XmlRpcValue& value)

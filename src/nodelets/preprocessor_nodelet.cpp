@@ -23,6 +23,7 @@
 #include "along_route_localization/PreprocessorConfig.h"
 #include "along_route_localization/preprocessing.h"
 #include "ros/map_io.h"
+#include "ros/reconfigure.h"
 
 namespace along_route_localization
 {
@@ -59,22 +60,6 @@ private:
 
 namespace
 {
-
-PreprocessingParams toParams(const PreprocessorConfig& config)
-{
-  PreprocessingParams params;
-  params.output_width = config.output_width;
-  params.output_height = config.output_height;
-  if (!normalizationFromString(config.normalization, &params.normalization))
-    params.normalization = NormalizationMethod::kPatch;
-  params.patch_size = config.patch_size;
-  params.min_patch_std = config.min_patch_std;
-  params.filter_window = config.filter_window;
-  params.normalization_strength = config.normalization_strength;
-  params.output_gain = config.output_gain;
-  params.sky_fraction = config.sky_fraction;
-  return params;
-}
 
 int greatestCommonDivisor(int a, int b)
 {

@@ -1,0 +1,41 @@
+#include "ros/reconfigure.h"
+
+#include <cmath>
+
+namespace along_route_localization
+{
+
+PreprocessingParams toParams(const PreprocessorConfig& config)
+{
+  PreprocessingParams params;
+  params.output_width = config.output_width;
+  params.output_height = config.output_height;
+  if (!normalizationFromString(config.normalization, &params.normalization))
+    params.normalization = NormalizationMethod::kPatch;
+  params.patch_size = config.patch_size;
+  params.min_patch_std = config.min_patch_std;
+  params.filter_window = config.filter_window;
+  params.normalization_strength = config.normalization_strength;
+  params.output_gain = config.output_gain;
+  params.sky_fraction = config.sky_fraction;
+  return params;
+}
+
+LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams params)
+{
+  if (!sequenceMethodFromString(config.method, &params.method))
+    params.method = SequenceMethod::kOnlineDtw;
+  params.ring_buffer_rows = config.ring_buffer_rows;
+  params.dtw.max_step = config.max_step;
+  params.max_shift_px = config.max_shift_px;
+  params.contrast_window = config.contrast_window;
+  params.search_radius = config.search_radius;
+  params.confidence_threshold = config.confidence_threshold;
+  params.dtw.stop_penalty = static_cast<float>(config.stop_penalty);
+  params.dtw.skip_penalty = static_cast<float>(config.skip_penalty);
+  params.horizontal_fov_rad = config.horizontal_fov_deg * M_PI / 180.0;
+  params.lost_after_frames = config.lost_after_frames;
+  return params;
+}
+
+}  // namespace along_route_localization

@@ -1,0 +1,57 @@
+// The dynamic_reconfigure defaults (cfg/*.cfg) are the core defaults, so a nodelet started without
+// parameters behaves as localize_offline does with none.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "ros/reconfigure.h"
+
+namespace arl = along_route_localization;
+
+TEST(Reconfigure, PreprocessorCfgDefaultsAreTheCoreDefaults)
+{
+  const arl::PreprocessingParams core;
+  const arl::PreprocessingParams from_cfg = arl::toParams(arl::PreprocessorConfig::__getDefault__());
+  EXPECT_EQ(core.serialize(), from_cfg.serialize());
+}
+
+TEST(Reconfigure, LocalizerCfgDefaultsAreTheCoreDefaults)
+{
+  // Start from values no default has, so every field the .cfg maps is seen to come from the .cfg.
+  arl::LocalizerParams base;
+  base.method = arl::SequenceMethod::kSeqSlam;
+  base.ring_buffer_rows = base.dtw.max_step = base.max_shift_px = base.contrast_window = base.search_radius =
+      base.lost_after_frames = 999;
+  base.confidence_threshold = base.horizontal_fov_rad = 0.999;
+  base.dtw.stop_penalty = base.dtw.skip_penalty = 999.0f;
+  const arl::LocalizerParams cfg = arl::toParams(arl::LocalizerConfig::__getDefault__(), base);
+  const arl::LocalizerParams core;
+  EXPECT_EQ(arl::toString(core.method), arl::toString(cfg.method));
+  EXPECT_EQ(core.ring_buffer_rows, cfg.ring_buffer_rows);
+  EXPECT_EQ(core.dtw.max_step, cfg.dtw.max_step);
+  EXPECT_EQ(core.max_shift_px, cfg.max_shift_px);
+  EXPECT_EQ(core.contrast_window, cfg.contrast_window);
+  EXPECT_EQ(core.search_radius, cfg.search_radius);
+  EXPECT_EQ(core.lost_after_frames, cfg.lost_after_frames);
+  EXPECT_DOUBLE_EQ(core.confidence_threshold, cfg.confidence_threshold);
+  EXPECT_FLOAT_EQ(core.dtw.stop_penalty, cfg.dtw.stop_penalty);
+  EXPECT_FLOAT_EQ(core.dtw.skip_penalty, cfg.dtw.skip_penalty);
+  EXPECT_NEAR(core.horizontal_fov_rad, cfg.horizontal_fov_rad, 1e-6);
+}
+
+TEST(Reconfigure, LocalizerFieldsTheCfgDoesNotHaveComeFromTheBase)
+{
+  arl::LocalizerParams base;
+  base.min_texture_ratio = 0.77f;
+  base.cost_function = arl::CostFunction::kCensus;
+  base.dtw.exclusion_radius = 17;
+  arl::LocalizerConfig config = arl::LocalizerConfig::__getDefault__();
+  config.horizontal_fov_deg = 90.0;
+  config.method = "no_such_method";
+  const arl::LocalizerParams params = arl::toParams(config, base);
+  EXPECT_FLOAT_EQ(0.77f, params.min_texture_ratio);
+  EXPECT_EQ(arl::CostFunction::kCensus, params.cost_function);
+  EXPECT_EQ(17, params.dtw.exclusion_radius);
+  EXPECT_NEAR(M_PI / 2, params.horizontal_fov_rad, 1e-12);
+  EXPECT_EQ(arl::SequenceMethod::kOnlineDtw, params.method);
+}
