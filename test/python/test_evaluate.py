@@ -196,6 +196,34 @@ class EvaluateEndToEndTest(unittest.TestCase):
         self.assertEqual(m["dark"]["queries"], 2)
         self.assertEqual(m["dark"]["wrong"], 0)
 
+    def test_keyframe_dark_stationary_and_subsets(self):
+        # queries 0-5 (errors 0, 0, 3, 0, no answer, 1): query 2 has a dark keyframe, 3 and 5 are stationary
+        gt = os.path.join(self.tmp, "gt.csv")
+        write(gt, "query_index,keyframe,query_dark,keyframe_dark,query_stationary,keyframe_stationary\n"
+                  "0,0,0,0,0,0\n1,1,0,0,0,0\n2,2,0,1,0,0\n3,3,0,0,1,0\n4,4,0,0,0,0\n5,5,0,0,0,1\n")
+        json_path = os.path.join(self.tmp, "m.json")
+        code, out, _ = self.run_main([self.results, "-g", gt, "--output-json", json_path])
+        self.assertEqual(code, 0)
+        with open(json_path) as f:
+            m = json.load(f)
+        self.check_six(m)   # all-query figures are unchanged
+        self.assertEqual(m["dark"]["queries"], 1)
+        self.assertEqual(m["dark"]["wrong"], 1)
+        self.assertEqual(m["stationary"], {"queries": 2, "not_dark": 2, "wrong": 0, "wrong_not_dark": 0})
+        # not dark: queries 0, 1, 3, 4, 5 with errors 0, 0, 0, none, 1; ranked 0.9 hit, 0.8 hit, 0.6 hit, 0.4 hit
+        nd = m["not_dark"]
+        self.assertEqual(nd["queries"], 5)
+        self.assertAlmostEqual(nd["within"]["0"], 3 / 5)
+        self.assertAlmostEqual(nd["within"]["1"], 4 / 5)
+        self.assertAlmostEqual(nd["recall_at_100_precision"], 4 / 5)
+        self.assertAlmostEqual(nd["average_precision"], 4 / 5)
+        # neither: queries 0, 1, 4 -> 2 hits of 3, the top answers right
+        nn = m["not_dark_not_stationary"]
+        self.assertEqual(nn["queries"], 3)
+        self.assertAlmostEqual(nn["within"]["1"], 2 / 3)
+        self.assertAlmostEqual(nn["recall_at_100_precision"], 2 / 3)
+        self.assertIn("excluding dark and stationary (3 queries)", out)
+
     def test_tolerance_zero(self):
         json_path = os.path.join(self.tmp, "m.json")
         self.run_main([self.results, "--identity", "--tolerance", "0", "--output-json", json_path])

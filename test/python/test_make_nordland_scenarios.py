@@ -126,6 +126,22 @@ class WriteTest(unittest.TestCase):
         rows = self.ground_truth("heading_offset")
         self.assertTrue(all(r["true_shift_px"] == "0" for r in rows))
 
+    def test_stationary_frames_are_marked(self):
+        # summer frames 4 and 5 identical (the train stands), winter frame 9 differs from 8 by 1 gray level only
+        self.cv2.imwrite(os.path.join(self.data, "summer", "images-00060.png"),
+                         self.cv2.imread(os.path.join(self.data, "summer", "images-00050.png")))
+        image = self.cv2.imread(os.path.join(self.data, "winter", "images-00090.png"))
+        image[:, 1:7] += 1
+        self.cv2.imwrite(os.path.join(self.data, "winter", "images-00100.png"), image)
+        code, err = self.run_main(["--output", self.out, "--data", self.data, "--scenarios", "aligned,spacing_2to1"])
+        self.assertEqual(code, 0, err)
+        rows = self.ground_truth("aligned")
+        self.assertEqual([int(r["keyframe_stationary"]) for r in rows], [1 if k in (4, 5) else 0 for k in range(12)])
+        self.assertEqual([int(r["query_stationary"]) for r in rows], [1 if k in (8, 9) else 0 for k in range(12)])
+        # 2:1 spacing: query 4 -> keyframe 2 = summer frame 4 (stationary), query 5 -> keyframe 3 = summer frame 6
+        rows = self.ground_truth("spacing_2to1")
+        self.assertEqual([int(r["keyframe_stationary"]) for r in rows[3:7]], [1, 1, 0, 0])
+
     def test_shifted_frames_are_new_files_with_replicated_edges(self):
         # make stretches start early by shifting every frame: patch the scenario's shift schedule
         original = scenarios.heading_offsets
