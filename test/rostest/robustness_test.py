@@ -12,6 +12,7 @@ import unittest
 import numpy as np
 import rospy
 import rostest
+from dynamic_reconfigure.client import Client as ReconfigureClient
 from nodelet.srv import NodeletLoad, NodeletUnload
 from sensor_msgs.msg import Image
 from std_srvs.srv import Trigger
@@ -123,6 +124,24 @@ class RobustnessTest(unittest.TestCase):
         self.assertEqual(stamps, sorted(stamps))
         self.assertLessEqual(len(stamps), len(burst))
         self.assertEqual(stamps[-1], burst[-1].header.stamp)
+
+    def test_map_made_with_other_preprocessing_is_refused_until_they_match(self):
+        preprocessor = ReconfigureClient('/repeat/preprocessor', timeout=30)
+        preprocessor.update_configuration({'sky_fraction': 0.25})
+        try:
+            other = self.good(11)
+            self.camera.publish(other)
+            self.wait_for_stamp(self.preprocessed, other.header.stamp, 'a frame made with sky_fraction 0.25')
+            fx.wait_for(lambda: self.rosout.matching('other preprocessing parameters'), 10,
+                        'an error saying the map was made with other parameters')
+            self.assertTrue([m for m in self.rosout.matching('other preprocessing parameters') if 'sky_fraction' in m.msg])
+            time.sleep(0.5)
+            self.assertFalse([m for m in self.localizations.snapshot() if m.header.stamp == other.header.stamp])
+        finally:
+            preprocessor.update_configuration({'sky_fraction': 0.0})
+        again = self.good(12)
+        self.camera.publish(again)
+        self.wait_for_stamp(self.localizations, again.header.stamp, 'localizations once the parameters match again')
 
     def test_localizer_unloaded_and_loaded_again(self):
         manager = '/repeat/repeat_manager'
