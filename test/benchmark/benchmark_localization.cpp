@@ -1,0 +1,514 @@
+// Google Benchmark of the per-frame work: preprocessing, the image difference over the map, the DTW
+// update, the whole Localizer::process while tracking and while searching globally, a straightforward
+// implementation for comparison, and a memory-read baseline over the same keyframe bytes.
+// All data is synthetic with fixed seeds. scripts/run_benchmarks runs it and prints the ratios.
+//
+// Names carry the map size as "keyframes:N" so that the script can pair figures of one run.
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+#include <opencv2/core.hpp>
+
+#include "along_route_localization/contrast_enhancement.h"
+#include "along_route_localization/cost_ring_buffer.h"
+#include "along_route_localization/image_difference.h"
+#include "along_route_localization/localizer.h"
+#include "along_route_localization/online_dtw.h"
+#include "along_route_localization/preprocessing.h"
+#include "along_route_localization/route_map.h"
+
+namespace arl = along_route_localization;
+
+namespace
+{
+
+constexpr int kWidth = 64;
+constexpr int kHeight = 32;
+constexpr int kMaxShiftPx = 4;
+constexpr int kAnchorSpacing = 8;  // keyframes between two unrelated views of the synthetic route
+constexpr uint32_t kSeed = 20240611u;
+
+/// The unnormalized view at keyframe k of a synthetic route: a linear blend of two random "anchor"
+/// views, so consecutive keyframes look alike and keyframes more than kAnchorSpacing apart do not.
+class SyntheticRoute
+{
+public:
+  void rawView(int keyframe, cv::Mat& view)
+  {
+    const int anchor = keyframe / kAnchorSpacing;
+    const float t = static_cast<float>(keyframe % kAnchorSpacing) / kAnchorSpacing;
+    const cv::Mat& a = anchorView(anchor);
+    const cv::Mat& b = anchorView(anchor + 1);
+    cv::addWeighted(a, 1.0 - t, b, t, 0.0, view, CV_8U);
+  }
+
+private:
+  const cv::Mat& anchorView(int anchor)
+  {
+    if (anchor != cached_index_[0] && anchor != cached_index_[1])
+    {
+      const int slot = anchor % 2;
+      cv::RNG rng(kSeed + static_cast<uint64_t>(anchor));
+      cached_[slot].create(kHeight, kWidth, CV_8UC1);
+      rng.fill(cached_[slot], cv::RNG::UNIFORM, 0, 256);
+      cached_index_[slot] = anchor;
+    }
+    return cached_[cached_index_[0] == anchor ? 0 : 1];
+  }
+
+  cv::Mat cached_[2];
+  int cached_index_[2] = { -1, -1 };
+};
+
+arl::PreprocessingParams mapParams()
+{
+  arl::PreprocessingParams params;  // 64 x 32, patch normalization, no sky rows
+  params.output_width = kWidth;
+  params.output_height = kHeight;
+  return params;
+}
+
+void normalizeLikeThePreprocessor(cv::Mat& image)
+{
+  const arl::PreprocessingParams params = mapParams();
+  arl::patchNormalize(image, params.patch_size, params.min_patch_std, params.output_gain);
+}
+
+/// Maps of N keyframes, built once per N and shared by all benchmarks (N = 100k is 200 MB).
+std::shared_ptr<const arl::RouteMap> routeMap(int keyframes)
+{
+  static std::map<int, std::shared_ptr<const arl::RouteMap>> cache;
+  auto it = cache.find(keyframes);
+  if (it != cache.end())
+    return it->second;
+  auto map = std::make_shared<arl::RouteMap>(mapParams());
+  map->reserve(keyframes);
+  SyntheticRoute route;
+  cv::Mat view;
+  for (int k = 0; k < keyframes; ++k)
+  {
+    route.rawView(k, view);
+    normalizeLikeThePreprocessor(view);
+    map->addKeyframe(view, static_cast<int64_t>(k) * 100000000);
+  }
+  cache[keyframes] = map;
+  return map;
+}
+
+/// Queries driving along the route: the keyframe's view with Gaussian noise, then normalized.
+class QueryStream
+{
+public:
+  explicit QueryStream(int first_keyframe) : next_(first_keyframe), rng_(kSeed) {}
+
+  /// The query for the next keyframe, written into `query` (64 x 32 mono8).
+  int next(cv::Mat& query)
+  {
+    route_.rawView(next_, raw_);
+    raw_.convertTo(noisy_, CV_32F);
+    for (int y = 0; y < kHeight; ++y)
+      for (int x = 0; x < kWidth; ++x)
+        noisy_.at<float>(y, x) += static_cast<float>(noise_(rng_));
+    noisy_.convertTo(query, CV_8U);
+    normalizeLikeThePreprocessor(query);
+    return next_++;
+  }
+
+private:
+  int next_;
+  SyntheticRoute route_;
+  cv::Mat raw_, noisy_;
+  std::mt19937 rng_;
+  std::normal_distribution<double> noise_{ 0.0, 8.0 };
+};
+
+/// A block of consecutive queries, generated outside the timed region.
+struct QueryBlock
+{
+  std::vector<cv::Mat> frames;
+  size_t next = 0;
+
+  void refill(QueryStream& stream, int count)
+  {
+    frames.resize(count);
+    for (cv::Mat& f : frames)
+      stream.next(f);
+    next = 0;
+  }
+};
+
+arl::LocalizerParams benchmarkLocalizerParams()
+{
+  arl::LocalizerParams params;  // defaults: K = 30, m = 4, search radius 40 (a band of 81)
+  params.parallel = true;
+  return params;
+}
+
+bool isTracking(arl::LocalizationStatus status)
+{
+  return status == arl::LocalizationStatus::kTracking;
+}
+
+const std::vector<int> kMapSizes = { 1000, 10000, 100000 };
+
+void mapSizeArgs(benchmark::internal::Benchmark* b)
+{
+  b->ArgNames({ "keyframes" });
+  for (int n : kMapSizes)
+    b->Arg(n);
+}
+
+void mapSizeParallelArgs(benchmark::internal::Benchmark* b)
+{
+  b->ArgNames({ "keyframes", "parallel" });
+  for (int n : kMapSizes)
+    for (int parallel : { 0, 1 })
+      b->Args({ n, parallel });
+}
+
+// ------------------------------------------------------------------------------------------------
+// Step 1: one camera frame (640 x 480) and one already small frame (64 x 32), bgr8 input.
+
+void BM_Preprocess(benchmark::State& state)
+{
+  const int width = static_cast<int>(state.range(0)), height = static_cast<int>(state.range(1));
+  arl::PreprocessingParams params = mapParams();
+  params.normalization = state.range(2) == 1 ? arl::NormalizationMethod::kPatch : arl::NormalizationMethod::kDivisive;
+  arl::Preprocessor preprocessor(params);
+  cv::Mat frame(height, width, CV_8UC3);
+  cv::RNG rng(kSeed);
+  rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
+  cv::Mat output;
+  for (auto _ : state)
+  {
+    preprocessor.process(frame, arl::PixelFormat::kBgr8, output);
+    benchmark::DoNotOptimize(output.data);
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * frame.total() * frame.elemSize());
+  state.SetLabel(params.normalization == arl::NormalizationMethod::kPatch ? "patch" : "divisive");
+}
+BENCHMARK(BM_Preprocess)
+    ->ArgNames({ "width", "height", "normalization" })
+    ->Args({ 640, 480, 1 })
+    ->Args({ 640, 480, 2 })
+    ->Args({ 64, 32, 1 })
+    ->Args({ 64, 32, 2 })
+    ->Unit(benchmark::kMicrosecond);
+
+// ------------------------------------------------------------------------------------------------
+// Memory-read baseline: every byte of the keyframe buffer once, as 64-bit words so that the loop is
+// bound by memory, not by widening adds. Serial, and split across cores like compareMany.
+
+uint64_t sumWords(const uint8_t* bytes, size_t count)
+{
+  uint64_t sum = 0;
+  for (size_t i = 0; i + 8 <= count; i += 8)
+  {
+    uint64_t word;
+    std::memcpy(&word, bytes + i, sizeof(word));  // compiles to a plain load
+    sum += word;
+  }
+  return sum;
+}
+
+void BM_MemoryRead(benchmark::State& state)
+{
+  const int n = static_cast<int>(state.range(0));
+  const bool parallel = state.range(1) != 0;
+  const auto map = routeMap(n);
+  const size_t bytes = map->keyframeBytes() * map->size();
+  const size_t stripe_bytes = 256 * map->keyframeBytes();  // compareMany's stripes
+  const int stripes = static_cast<int>((bytes + stripe_bytes - 1) / stripe_bytes);
+  std::vector<uint64_t> partial(stripes);
+  for (auto _ : state)
+  {
+    if (parallel)
+    {
+      cv::parallel_for_(cv::Range(0, stripes), [&](const cv::Range& range) {
+        for (int s = range.start; s < range.end; ++s)
+        {
+          const size_t begin = s * stripe_bytes;
+          partial[s] = sumWords(map->data() + begin, std::min(stripe_bytes, bytes - begin));
+        }
+      });
+    }
+    else
+    {
+      partial[0] = sumWords(map->data(), bytes);
+    }
+    benchmark::DoNotOptimize(partial.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(bytes));
+}
+BENCHMARK(BM_MemoryRead)->Apply(mapSizeParallelArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+// ------------------------------------------------------------------------------------------------
+// Step 2: SAD with a +-4 px shift search of one query against every keyframe of the map.
+
+void BM_SadCompareMany(benchmark::State& state)
+{
+  const int n = static_cast<int>(state.range(0));
+  const bool parallel = state.range(1) != 0;
+  const auto map = routeMap(n);
+  const arl::ImageDifference difference(kWidth, kHeight, 0, kMaxShiftPx, true);
+  QueryStream stream(n / 2);
+  cv::Mat query;
+  stream.next(query);
+  std::vector<float> costs(n), shifts(n);
+  for (auto _ : state)
+  {
+    difference.compareMany(query.data, map->data(), n, costs.data(), shifts.data(), parallel);
+    benchmark::DoNotOptimize(costs.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(map->keyframeBytes()) * n);
+}
+BENCHMARK(BM_SadCompareMany)->Apply(mapSizeParallelArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+// ------------------------------------------------------------------------------------------------
+// The straightforward implementation: plain nested loops, every keyframe, every shift, one thread,
+// no SIMD (vectorization switched off for this function under GCC), no band.
+
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-tree-vectorize")))
+#endif
+void straightforwardRow(const uint8_t* query, const uint8_t* keyframes, int count, float* costs, float* shifts)
+{
+  const int m = kMaxShiftPx;
+  const float pixels = static_cast<float>(kHeight * (kWidth - 2 * m));
+  for (int k = 0; k < count; ++k)
+  {
+    const uint8_t* keyframe = keyframes + static_cast<size_t>(k) * kWidth * kHeight;
+    uint32_t best = UINT_MAX;
+    int best_shift = 0;
+    for (int d = -m; d <= m; ++d)
+    {
+      uint32_t sum = 0;
+      for (int y = 0; y < kHeight; ++y)
+        for (int x = m; x < kWidth - m; ++x)
+          sum += static_cast<uint32_t>(std::abs(query[y * kWidth + x] - keyframe[y * kWidth + x - d]));
+      if (sum < best)
+      {
+        best = sum;
+        best_shift = d;
+      }
+    }
+    costs[k] = static_cast<float>(best) / pixels;
+    shifts[k] = static_cast<float>(best_shift);
+  }
+}
+
+void BM_StraightforwardSad(benchmark::State& state)
+{
+  const int n = static_cast<int>(state.range(0));
+  const auto map = routeMap(n);
+  QueryStream stream(n / 2);
+  cv::Mat query;
+  stream.next(query);
+  std::vector<float> costs(n), shifts(n), reference_costs(n), reference_shifts(n);
+  // Same costs as the optimized code (shifts may differ on ties), or the comparison means nothing.
+  const arl::ImageDifference difference(kWidth, kHeight, 0, kMaxShiftPx, false);
+  const int checked = std::min(n, 2000);
+  difference.compareMany(query.data, map->data(), checked, reference_costs.data(), reference_shifts.data());
+  straightforwardRow(query.data, map->data(), checked, costs.data(), shifts.data());
+  for (int k = 0; k < checked; ++k)
+    if (costs[k] != reference_costs[k])
+    {
+      state.SkipWithError("straightforward and optimized SAD disagree");
+      return;
+    }
+  for (auto _ : state)
+  {
+    straightforwardRow(query.data, map->data(), n, costs.data(), shifts.data());
+    benchmark::DoNotOptimize(costs.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(map->keyframeBytes()) * n);
+}
+BENCHMARK(BM_StraightforwardSad)->Apply(mapSizeArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+// The straightforward per-frame localizer: the row above over the whole map, eq. 2 contrast
+// enhancement, and the DTW over the whole map (K = 30 rows) -- no band, no SIMD, no threads.
+void BM_StraightforwardFrame(benchmark::State& state)
+{
+  const int n = static_cast<int>(state.range(0));
+  const auto map = routeMap(n);
+  const arl::LocalizerParams params = benchmarkLocalizerParams();
+  arl::CostRingBuffer ring(params.ring_buffer_rows, n);
+  arl::OnlineDtw dtw(params.dtw);
+  std::vector<float> costs(n), shifts(n);
+  QueryStream stream(n / 2);
+  cv::Mat query;
+  const auto frame = [&]() {
+    stream.next(query);
+    straightforwardRow(query.data, map->data(), n, costs.data(), shifts.data());
+    arl::enhanceContrast(costs.data(), nullptr, n, params.contrast_window, params.contrast_min_std,
+                         params.contrast_clamp, 0.0f, ring.appendRow(0, n));
+    return dtw.match(ring, 0, n, params.ring_buffer_rows, true);
+  };
+  // Fill the ring buffer with the optimized row (same costs), or the setup alone takes K slow frames.
+  const arl::ImageDifference difference(kWidth, kHeight, 0, kMaxShiftPx, true);
+  for (int r = 0; r + 1 < params.ring_buffer_rows; ++r)
+  {
+    stream.next(query);
+    difference.compareMany(query.data, map->data(), n, costs.data(), shifts.data(), true);
+    arl::enhanceContrast(costs.data(), nullptr, n, params.contrast_window, params.contrast_min_std,
+                         params.contrast_clamp, 0.0f, ring.appendRow(0, n));
+  }
+  int keyframe = 0;
+  for (auto _ : state)
+  {
+    const arl::SequenceMatch match = frame();
+    keyframe = match.keyframe;
+    benchmark::DoNotOptimize(keyframe);
+  }
+  state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(map->keyframeBytes()) * n);
+}
+BENCHMARK(BM_StraightforwardFrame)->Apply(mapSizeArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+// ------------------------------------------------------------------------------------------------
+// Step 4: the DTW update alone, K = 30 rows, a band of 81 keyframes moving one keyframe per row.
+
+void BM_DtwMatch(benchmark::State& state)
+{
+  const int band = static_cast<int>(state.range(0));
+  const arl::LocalizerParams params = benchmarkLocalizerParams();
+  const int rows = params.ring_buffer_rows;
+  arl::CostRingBuffer ring(rows, 10000);
+  std::mt19937 rng(kSeed);
+  std::uniform_real_distribution<float> cost(-2.0f, 2.0f);
+  int first = 1000;
+  for (int r = 0; r < rows; ++r, ++first)
+  {
+    float* row = ring.appendRow(first, band);
+    for (int i = 0; i < band; ++i)
+      row[i] = cost(rng);
+  }
+  arl::OnlineDtw dtw(params.dtw);
+  const int newest_first = first - 1;
+  for (auto _ : state)
+  {
+    arl::SequenceMatch match = dtw.match(ring, newest_first, band, rows, true);
+    benchmark::DoNotOptimize(match);
+  }
+  state.counters["rows"] = rows;
+}
+BENCHMARK(BM_DtwMatch)->ArgNames({ "band" })->Arg(81)->Unit(benchmark::kMicrosecond);
+
+// ------------------------------------------------------------------------------------------------
+// Steps 2-5: Localizer::process while tracking along the route.
+
+constexpr int kStartKeyframe = 100;
+constexpr int kQueryBlock = 1024;
+
+/// Feeds queries from kStartKeyframe until the localizer tracks; false if it never does.
+bool startTracking(arl::Localizer& localizer, QueryStream& stream, int* keyframe)
+{
+  cv::Mat query;
+  for (int frame = 0; frame < 50; ++frame)
+  {
+    *keyframe = stream.next(query);
+    const arl::LocalizationResult result = localizer.process(query);
+    if (isTracking(result.status) && std::abs(result.keyframe - *keyframe) <= 1)
+      return true;
+  }
+  return false;
+}
+
+void BM_LocalizerTracking(benchmark::State& state)
+{
+  const int n = static_cast<int>(state.range(0));
+  const auto map = routeMap(n);
+  arl::Localizer localizer(map, benchmarkLocalizerParams());
+  std::unique_ptr<QueryStream> stream(new QueryStream(kStartKeyframe));
+  int keyframe = 0;
+  if (!startTracking(localizer, *stream, &keyframe))
+  {
+    state.SkipWithError("the localizer does not track the synthetic route");
+    return;
+  }
+  // Blocks short enough that a block never reaches the end of the route (end_of_route is not tracking).
+  const int block_size = std::min(kQueryBlock, n / 2);
+  QueryBlock block;
+  block.refill(*stream, block_size);
+  keyframe += 1;  // of block.frames[0]
+  int64_t not_tracking = 0, wrong = 0;
+  for (auto _ : state)
+  {
+    if (block.next == block.frames.size())
+    {
+      state.PauseTiming();
+      if (keyframe + 2 * block_size >= n)  // near the end of the route: start over at the beginning
+      {
+        localizer.reset();
+        stream.reset(new QueryStream(kStartKeyframe));
+        if (!startTracking(localizer, *stream, &keyframe))
+        {
+          state.SkipWithError("the localizer does not track the synthetic route after a reset");
+          break;
+        }
+        keyframe += 1;
+      }
+      block.refill(*stream, block_size);
+      state.ResumeTiming();
+    }
+    const arl::LocalizationResult result = localizer.process(block.frames[block.next++]);
+    not_tracking += isTracking(result.status) ? 0 : 1;
+    wrong += std::abs(result.keyframe - keyframe) <= 1 ? 0 : 1;
+    ++keyframe;
+  }
+  if (not_tracking > 0)
+    state.SkipWithError("the localizer stopped tracking during the benchmark");
+  state.counters["frames_not_tracking"] = static_cast<double>(not_tracking);
+  state.counters["frames_off_by_more_than_1"] = static_cast<double>(wrong);
+  state.SetItemsProcessed(state.iterations());
+}
+// Wrapping back to the start of the route happens in paused time, so the times stay comparable across N.
+BENCHMARK(BM_LocalizerTracking)->Apply(mapSizeArgs)->UseRealTime()->Unit(benchmark::kMicrosecond);
+
+// Global relocalization: a localizer that never leaves the initializing state, so every frame
+// computes the whole-map row (parallel compareMany), contrast enhancement and the whole-map DTW.
+void BM_GlobalRelocalization(benchmark::State& state)
+{
+  const int n = static_cast<int>(state.range(0));
+  const auto map = routeMap(n);
+  arl::LocalizerParams params = benchmarkLocalizerParams();
+  params.min_init_frames = INT_MAX;
+  arl::Localizer localizer(map, params);
+  QueryStream stream(kStartKeyframe);
+  QueryBlock block;
+  block.refill(stream, 256);
+  for (int r = 0; r < params.ring_buffer_rows; ++r)  // a full ring buffer, as after K lost frames
+    localizer.process(block.frames[block.next++]);
+  int wrong = 0;
+  for (auto _ : state)
+  {
+    if (block.next == block.frames.size())
+    {
+      state.PauseTiming();
+      block.refill(stream, 256);
+      state.ResumeTiming();
+    }
+    const arl::LocalizationResult result = localizer.process(block.frames[block.next++]);
+    wrong += result.keyframe >= 0 ? 0 : 1;
+  }
+  state.counters["frames_without_answer"] = wrong;
+  state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(map->keyframeBytes()) * n);
+}
+BENCHMARK(BM_GlobalRelocalization)->Apply(mapSizeArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
