@@ -3,6 +3,7 @@
 #define ALONG_ROUTE_LOCALIZATION_CONTRAST_ENHANCEMENT_H
 
 #include <cstdint>
+#include <vector>
 
 namespace along_route_localization
 {
@@ -15,6 +16,26 @@ namespace along_route_localization
 /// informative). `out` may not alias `costs`. O(count) with running sums.
 void enhanceContrast(const float* costs, const uint8_t* informative, int count, int half_window,
                      float min_std, float clamp, float neutral, float* out);
+
+/// Reusable storage of enhanceContrastRuns (no allocation once grown to the largest count seen).
+struct ContrastRunsScratch
+{
+  std::vector<float> run_cost, run_mean, run_std;
+  std::vector<uint8_t> run_informative;
+  std::vector<int> run_of, run_n;
+};
+
+/// eq. 2 with the window counted in runs of near-identical keyframes instead of keyframes.
+/// repeats[i] != 0 marks keyframe i as a copy of keyframe i - 1 (the teach camera stood still;
+/// repeats[0] is ignored). A run is represented by its first entry's cost and informative flag, and
+/// the window of every entry of run r is the runs [r - n, r + n]: a station where the map holds many
+/// copies of one view counts once, so it neither fills the window with the true match's own cost (which
+/// would score it neutral) nor outweighs the places around it. Each entry is then scored with its own
+/// cost, D^_i = (D_i - mean_r) / max(std_r, min_std), clamped, `neutral` as in enhanceContrast.
+/// Equals enhanceContrast when repeats is null or all zero. O(count).
+void enhanceContrastRuns(const float* costs, const uint8_t* informative, const uint8_t* repeats, int count,
+                         int half_window, float min_std, float clamp, float neutral, float* out,
+                         ContrastRunsScratch* scratch);
 
 }  // namespace along_route_localization
 

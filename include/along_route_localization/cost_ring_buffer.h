@@ -21,7 +21,8 @@ public:
 
   /// Appends a row covering [first_keyframe, first_keyframe + width) and returns its storage
   /// (width floats) to fill; the oldest row is dropped when K rows are held. 0 < width <= max_width.
-  float* appendRow(int first_keyframe, int width);
+  /// repeated_query: the row's query showed the same view as the previous row's (the camera stood still).
+  float* appendRow(int first_keyframe, int width, bool repeated_query = false);
 
   /// Changes K and/or N keeping the newest min(size(), rows) rows (bands clipped to the new width).
   void resize(int rows, int max_width);
@@ -35,6 +36,8 @@ public:
   int rowFirst(int age) const;
   int rowWidth(int age) const;
   const float* row(int age) const;
+  /// The repeated_query flag given to appendRow for the row of that age.
+  bool repeatedQuery(int age) const { return bands_[slot(age)].repeated_query; }
 
   /// Cost of `keyframe` in the row of that age, or `missing` outside the row's band.
   float at(int age, int keyframe, float missing) const
@@ -53,6 +56,7 @@ private:
   {
     int first = 0;
     int width = 0;
+    bool repeated_query = false;
   };
   int slot(int age) const { return (newest_ - age + capacity_) % capacity_; }
 

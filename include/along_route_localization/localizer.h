@@ -36,6 +36,17 @@ enum class SequenceMethod
 std::string toString(SequenceMethod method);
 bool sequenceMethodFromString(const std::string& name, SequenceMethod* method);
 
+/// DtwParams' defaults with first_stop_penalty = 0.05: on real routes the camera often stands still in
+/// both traversals (stations), where every speed through the copies of one view costs the same; the
+/// nominal speed is then the best guess. 0.05 is 1/40 of the clamp of one enhanced cost, so it never
+/// outweighs evidence: half speed (a stop every second frame) pays 0.025 per row.
+inline DtwParams localizerDtwDefaults()
+{
+  DtwParams params;
+  params.first_stop_penalty = 0.05f;
+  return params;
+}
+
 /// Parameters of steps 2-5. Units in the comments; validate() gives the allowed ranges.
 struct LocalizerParams
 {
@@ -47,14 +58,20 @@ struct LocalizerParams
   int contrast_window = 10;           ///< n, eq. 2 half window, keyframes
   float contrast_min_std = 0.01f;     ///< floor of the eq. 2 std (cost units)
   float contrast_clamp = 2.0f;        ///< |enhanced cost| limit
-  /// A frame or keyframe whose textureEnergy is below min_texture_ratio * output_gain is featureless
-  /// (normal frames score about 0.8 * output_gain after patch normalization).
-  float min_texture_ratio = 0.3f;
+  /// A frame or keyframe whose textureEnergy is below min_texture_ratio * the map's median keyframe
+  /// energy is featureless (near-black, blank). Relative, so it holds for every normalization method.
+  float min_texture_ratio = 0.4f;
+  /// Two images (consecutive keyframes, or a query and the previous query) whose mean absolute byte
+  /// difference is below stationary_ratio * the map's median difference between consecutive keyframes
+  /// show the same view: the camera stood still. Used by eq. 2 (a run of such keyframes counts once,
+  /// enhanceContrastRuns) and by column centering (rows of a repeated query are flagged, OnlineDtw).
+  /// 0 = off.
+  float stationary_ratio = 0.2f;
   /// Divide each SAD by the sum of the two images' texture energies (step 2b), so that partly
   /// featureless keyframes do not look similar to every query.
   bool energy_normalized_cost = true;
   int search_radius = 40;             ///< keyframes computed on each side of the predicted match while tracking
-  DtwParams dtw;                      ///< s (max_step), stop and skip penalties, exclusion radius
+  DtwParams dtw = localizerDtwDefaults();  ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
   int min_init_frames = 5;            ///< frames before the first global answer
   double confidence_threshold = 0.2;  ///< below it a frame counts as low-confidence
@@ -107,6 +124,12 @@ public:
   const std::vector<int>& lastPath() const { return last_path_; }
   /// Frames processed since construction or reset().
   uint64_t frameCount() const { return frames_; }
+  /// Median textureEnergy of the map's keyframes, and the featureless threshold derived from it.
+  float medianKeyframeEnergy() const { return median_energy_; }
+  float minTextureEnergy() const { return min_texture_energy_; }
+  /// Median mean absolute byte difference between consecutive keyframes, and the stationary threshold.
+  float medianKeyframeChange() const { return median_keyframe_change_; }
+  float stationaryChange() const { return stationary_change_; }
 
   /// The paper's figure 4: ring buffer (rows = frames, newest at the bottom; columns = keyframes of
   /// [first, first + width)) as a gray image, dark = low cost, with the current path in red. BGR8.
@@ -114,7 +137,8 @@ public:
 
 private:
   void rebuildComparators();
-  void computeRow(const uint8_t* query, float query_energy, bool query_informative, int first, int width);
+  void computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query, int first,
+                  int width);
 
   std::shared_ptr<const RouteMap> map_;
   LocalizerParams params_;
@@ -123,7 +147,14 @@ private:
   std::vector<uint8_t> keyframe_census_;   // census codes of all keyframes, when that cost is used
   std::vector<uint8_t> query_census_;
   std::vector<uint8_t> keyframe_informative_;
-  float min_texture_energy_ = 0.0f;        // min_texture_ratio * the map's output_gain
+  std::vector<uint8_t> keyframe_repeats_;  // [k]: keyframe k shows the view of k - 1 (stationary_change_)
+  std::vector<int> keyframe_run_;          // [k]: number of keyframes up to k that are not repeats
+  ContrastRunsScratch contrast_scratch_;
+  float median_energy_ = 0.0f;             // of the map's keyframes
+  float min_texture_energy_ = 0.0f;        // min_texture_ratio * median_energy_
+  std::vector<float> keyframe_change_;     // [k]: mean |byte difference| of keyframes k - 1 and k ([0] = 0)
+  float median_keyframe_change_ = 0.0f;    // its median
+  float stationary_change_ = 0.0f;         // stationary_ratio * median_keyframe_change_
   CostRingBuffer ring_;
   OnlineDtw dtw_;
 
@@ -138,6 +169,7 @@ private:
   int low_confidence_frames_ = 0;
   uint64_t frames_ = 0;
   std::vector<int> last_path_;
+  cv::Mat entered_query_;                  // the last query that entered the ring buffer (empty: none)
 };
 
 }  // namespace along_route_localization

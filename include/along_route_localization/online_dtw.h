@@ -16,6 +16,10 @@ struct SequenceMatch
   float cost = 0.0f;          ///< best path cost divided by the number of rows it spans
   float second_cost = 0.0f;   ///< best cost among end keyframes farther than the exclusion radius
   bool has_second = false;    ///< false when every candidate lies inside the exclusion radius
+  /// As second_cost, with the exclusion radius counted in runs of near-identical keyframes (see match):
+  /// the best cost at another place, not merely at another copy of the same view.
+  float second_place_cost = 0.0f;
+  bool has_second_place = false;
   int rows = 0;               ///< rows of the ring buffer the path spans
   std::vector<int> path;      ///< keyframe per row, oldest first (filled by OnlineDtw only)
 };
@@ -27,18 +31,25 @@ struct DtwParams
   /// from s down to half the teach speed costs nothing, while a path parked on one keyframe pays
   /// this for every frame after the first.
   float stop_penalty = 1.0f;
+  /// Cost of a (1,0) stop right after a move (0: free). A small value only breaks ties in favour of the
+  /// nominal speed (one keyframe per frame), e.g. through a station where map and query both hold one
+  /// view and every speed fits equally well. The Localizer uses 0.05 (localizerDtwDefaults).
+  float first_stop_penalty = 0.0f;
   float skip_penalty = 1.0f;   ///< added per keyframe skipped beyond one, for (1,k), k >= 2
   float missing_cost = 1.0f;   ///< cost of a keyframe a row did not compute (outside its band)
   int exclusion_radius = 5;    ///< keyframes around the best end ignored for second_cost
   /// Subtract from every keyframe its mean cost over the rows in the window before accumulating, so a
-  /// keyframe that resembles every query (a generic view) cannot carry a path by itself.
+  /// keyframe that resembles every query (a generic view) cannot carry a path by itself. Rows flagged
+  /// repeatedQuery (except the oldest) are left out of the mean, and the mean of the D distinct rows
+  /// is scaled by (D - 1) / (K' - 1) for K' rows: a window of one view held K' times (D = 1) is not
+  /// centred at all, instead of to zero everywhere (which would tie every keyframe).
   bool column_centering = true;
 };
 
 /// Accumulated cost, row by row from the oldest row in the buffer to the newest, in two states per
 /// keyframe: M (the last step moved) and S (the last step was a stop):
 ///   M_r(i) = C_r(i) + min_{k=1..s} [ min(M_{r-1}(i-k), S_{r-1}(i-k)) + (k - 1) * skip_penalty ]
-///   S_r(i) = C_r(i) + min( M_{r-1}(i), S_{r-1}(i) + stop_penalty )
+///   S_r(i) = C_r(i) + min( M_{r-1}(i) + first_stop_penalty, S_{r-1}(i) + stop_penalty )
 /// (C centred per keyframe over the window when column_centering is set). The match is
 /// argmin_i min(M, S)_newest(i) over the candidate end keyframes [first_end, first_end + count).
 /// Because the accumulation spans only the K rows held, a wrong stretch falls out of the window and
@@ -52,8 +63,12 @@ public:
 
   /// Uses the newest min(rows, buffer.size()) rows. With `backtrack` the best path is returned too.
   /// Reuses internal buffers: no allocation once they have grown to the largest band seen.
+  /// keyframe_run (optional, indexed by keyframe over the whole map, non-decreasing) numbers the runs of
+  /// near-identical keyframes (a station where the teach camera stood still is one run): the exclusion
+  /// radius of second_place_cost is counted in runs, so copies of the best keyframe's view are not
+  /// taken for another place. Without it second_place_cost = second_cost.
   SequenceMatch match(const CostRingBuffer& buffer, int first_end, int count, int rows,
-                      bool backtrack = false);
+                      bool backtrack = false, const int* keyframe_run = nullptr);
 
   /// Accumulated cost row of the last match() (per end keyframe, divided by rows), for display.
   const std::vector<float>& lastAccumulated() const { return last_row_; }

@@ -11,13 +11,13 @@ CostRingBuffer::CostRingBuffer(int rows, int max_width) : capacity_(0), max_widt
   resize(rows, max_width);
 }
 
-float* CostRingBuffer::appendRow(int first_keyframe, int width)
+float* CostRingBuffer::appendRow(int first_keyframe, int width, bool repeated_query)
 {
   if (width <= 0 || width > max_width_)
     throw std::invalid_argument("CostRingBuffer::appendRow: width must be in [1, max_width]");
   newest_ = (newest_ + 1) % capacity_;
   size_ = std::min(size_ + 1, capacity_);
-  bands_[newest_] = Band{ first_keyframe, width };
+  bands_[newest_] = Band{ first_keyframe, width, repeated_query };
   return data_.data() + static_cast<size_t>(newest_) * max_width_;
 }
 
@@ -35,7 +35,7 @@ void CostRingBuffer::resize(int rows, int max_width)
   {
     const Band& old = bands_[slot(age)];
     const int width = std::min(old.width, max_width);
-    bands[slot_new] = Band{ old.first, width };
+    bands[slot_new] = Band{ old.first, width, old.repeated_query };
     std::copy_n(data_.data() + static_cast<size_t>(slot(age)) * max_width_, width,
                 data.data() + static_cast<size_t>(slot_new) * max_width);
   }

@@ -57,6 +57,8 @@ std::string LocalizerParams::validate() const
     e << "contrast_clamp must be > 0, got " << contrast_clamp;
   else if (!(min_texture_ratio >= 0.0f && min_texture_ratio <= 4.0f))
     e << "min_texture_ratio must be in [0, 4], got " << min_texture_ratio;
+  else if (!(stationary_ratio >= 0.0f && stationary_ratio <= 1.0f))
+    e << "stationary_ratio must be in [0, 1], got " << stationary_ratio;
   else if (search_radius < 1)
     e << "search_radius must be >= 1 keyframe, got " << search_radius;
   else if (dtw.max_step < 1 || dtw.max_step > 16)
@@ -84,6 +86,31 @@ std::string LocalizerParams::validate() const
   return e.str();
 }
 
+namespace
+{
+
+/// Mean absolute difference of two images of the map's size over rows [first_row, height).
+float meanAbsoluteDifference(const uint8_t* a, const uint8_t* b, int width, int height, int first_row)
+{
+  const int rows = height - first_row;
+  if (rows <= 0)
+    return 0.0f;
+  const cv::Mat image_a(rows, width, CV_8UC1, const_cast<uint8_t*>(a) + first_row * width);
+  const cv::Mat image_b(rows, width, CV_8UC1, const_cast<uint8_t*>(b) + first_row * width);
+  return static_cast<float>(cv::norm(image_a, image_b, cv::NORM_L1) / (static_cast<double>(rows) * width));
+}
+
+float median(std::vector<float> values)
+{
+  if (values.empty())
+    return 0.0f;
+  const auto middle = values.begin() + values.size() / 2;
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+}  // namespace
+
 double homingAngleFromShift(double shift_px, int image_width, double horizontal_fov_rad)
 {
   const double focal_px = 0.5 * image_width / std::tan(0.5 * horizontal_fov_rad);
@@ -94,6 +121,18 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
 {
   if (!map_ || map_->empty())
     throw std::invalid_argument("Localizer: the route map is empty");
+  // Properties of the map alone, measured once: what a normal keyframe's texture is, and how much
+  // consecutive keyframes differ while the teach camera moved.
+  std::vector<float> values(map_->size());
+  for (size_t k = 0; k < map_->size(); ++k)
+    values[k] = map_->energy(k);
+  median_energy_ = median(values);
+  const int sky = std::min(map_->params().skyRows(), map_->height() - 1);
+  keyframe_change_.assign(map_->size(), 0.0f);
+  for (size_t k = 1; k < map_->size(); ++k)
+    keyframe_change_[k] =
+        meanAbsoluteDifference(map_->keyframe(k - 1), map_->keyframe(k), map_->width(), map_->height(), sky);
+  median_keyframe_change_ = median(std::vector<float>(keyframe_change_.begin() + 1, keyframe_change_.end()));
   setParams(params);
   const size_t n = map_->size();
   raw_costs_.resize(n);
@@ -116,10 +155,37 @@ void Localizer::setParams(const LocalizerParams& params)
   const int rows = std::max(params_.ring_buffer_rows,
                             params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : 0);
   ring_.resize(rows, static_cast<int>(map_->size()));
-  min_texture_energy_ = params_.min_texture_ratio * static_cast<float>(map_->params().output_gain);
+  min_texture_energy_ = params_.min_texture_ratio * median_energy_;
+  stationary_change_ = params_.stationary_ratio * median_keyframe_change_;
   keyframe_informative_.resize(map_->size());
   for (size_t k = 0; k < map_->size(); ++k)
     keyframe_informative_[k] = map_->energy(k) >= min_texture_energy_ ? 1 : 0;
+  // A featureless keyframe shows no view: it neither starts nor ends a run (it joins the run before it).
+  // An informative keyframe repeats the view of the last informative keyframe before it, or not.
+  keyframe_repeats_.assign(map_->size(), 0);
+  const int sky = std::min(map_->params().skyRows(), map_->height() - 1);
+  int last_informative = keyframe_informative_[0] ? 0 : -1;
+  for (size_t k = 1; k < map_->size(); ++k)
+  {
+    if (!keyframe_informative_[k])
+    {
+      keyframe_repeats_[k] = 1;
+      continue;
+    }
+    if (last_informative >= 0)
+    {
+      const float change =
+          last_informative == static_cast<int>(k) - 1 ?
+              keyframe_change_[k] :
+              meanAbsoluteDifference(map_->keyframe(last_informative), map_->keyframe(k), map_->width(),
+                                     map_->height(), sky);
+      keyframe_repeats_[k] = change < stationary_change_ ? 1 : 0;
+    }
+    last_informative = static_cast<int>(k);
+  }
+  keyframe_run_.assign(map_->size(), 0);
+  for (size_t k = 1; k < map_->size(); ++k)
+    keyframe_run_[k] = keyframe_run_[k - 1] + (keyframe_repeats_[k] ? 0 : 1);
   if (comparators_changed)
     rebuildComparators();
 }
@@ -149,9 +215,11 @@ void Localizer::reset()
   low_confidence_frames_ = 0;
   frames_ = 0;
   last_path_.clear();
+  entered_query_.release();
 }
 
-void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_informative, int first, int width)
+void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query,
+                           int first, int width)
 {
   float* costs = raw_costs_.data() + first;
   float* shifts = shifts_.data() + first;
@@ -188,9 +256,10 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
   // output is zero-mean), so dark stretches neither attract nor repel the path.
   for (int k = 0; k < width; ++k)
     mask_[k] = query_informative && keyframe_informative_[first + k];
-  float* row = ring_.appendRow(first, width);
-  enhanceContrast(costs, mask_.data(), width, params_.contrast_window, params_.contrast_min_std,
-                  params_.contrast_clamp, 0.0f, row);
+  float* row = ring_.appendRow(first, width, repeated_query);
+  enhanceContrastRuns(costs, mask_.data(), stationary_change_ > 0.0f ? keyframe_repeats_.data() + first : nullptr,
+                      width, params_.contrast_window, params_.contrast_min_std, params_.contrast_clamp, 0.0f, row,
+                      &contrast_scratch_);
   newest_first_ = first;
   newest_width_ = width;
 }
@@ -211,8 +280,14 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   ++frames_;
   const int n = static_cast<int>(map_->size());
   LocalizationResult result;
+  const int first_row = std::min(map_->params().skyRows(), map_->height() - 1);
   const float query_energy = textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows());
   result.query_informative = query_energy >= min_texture_energy_;
+
+  // The query repeats the previous row's view (the camera stood still): flagged for column centering.
+  const bool repeated_query = stationary_change_ > 0.0f && !entered_query_.empty() &&
+                              meanAbsoluteDifference(query, entered_query_.data, map_->width(), map_->height(),
+                                                     first_row) < stationary_change_;
 
   const bool tracking = last_match_ >= 0 && (status_ == LocalizationStatus::kTracking ||
                                              status_ == LocalizationStatus::kEndOfRoute);
@@ -225,22 +300,30 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
     first = std::max(0, predicted - params_.search_radius);
     width = std::min(n, predicted + params_.search_radius + 1) - first;
   }
-  computeRow(query, query_energy, result.query_informative, first, width);
+  computeRow(query, query_energy, result.query_informative, repeated_query, first, width);
+  cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
 
   SequenceMatch match;
   if (params_.method == SequenceMethod::kSeqSlam)
     match = seqSlamMatch(ring_, 0, n, params_.seqslam);
   else
-    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, true);
+    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, true, keyframe_run_.data());
   last_path_ = match.path;
 
-  // Confidence: how much cheaper per row the best path is than the best path ending elsewhere.
-  const float reference = match.has_second ? match.second_cost : params_.dtw.missing_cost;
-  const double margin = std::max(0.0f, reference - match.cost);
-  result.confidence = 1.0 - std::exp(-margin / params_.confidence_scale);
+  // Confidence: how much cheaper per row the best path is than the best path ending elsewhere. The
+  // reported confidence is about the keyframe (a copy of the same view nearby competes); tracking and
+  // loss go by the confidence in the place (only other runs of keyframes compete), so a station where
+  // the map holds many copies of one view does not look like being lost.
+  const auto confidenceFrom = [&](bool has_reference, float reference_cost) {
+    const float reference = has_reference ? reference_cost : params_.dtw.missing_cost;
+    const double margin = std::max(0.0f, reference - match.cost);
+    return 1.0 - std::exp(-margin / params_.confidence_scale);
+  };
+  result.confidence = confidenceFrom(match.has_second, match.second_cost);
   result.keyframe = match.keyframe;
 
-  const bool confident = result.confidence >= params_.confidence_threshold;
+  const bool confident =
+      confidenceFrom(match.has_second_place, match.second_place_cost) >= params_.confidence_threshold;
   if (!tracking)
   {
     if (ring_.size() >= params_.min_init_frames && confident && params_.method == SequenceMethod::kOnlineDtw)

@@ -38,7 +38,8 @@ void OnlineDtw::setParams(const DtwParams& params)
   params_ = params;
 }
 
-SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int count, int rows, bool backtrack)
+SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int count, int rows, bool backtrack,
+                                const int* keyframe_run)
 {
   SequenceMatch result;
   const int num_rows = std::min(rows, buffer.size());
@@ -64,14 +65,22 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   column_mean_.assign(width, 0.0f);
   if (params_.column_centering && num_rows > 1)
   {
+    // Rows of a repeated query carry no new evidence about which keyframes resemble every query: the
+    // mean runs over the distinct rows and shrinks by (distinct - 1) / (rows - 1), so a window of one
+    // view repeated K times is not centred to zero everywhere.
+    int distinct = 0;
     for (int age = 0; age < num_rows; ++age)
     {
+      if (buffer.repeatedQuery(age) && age != num_rows - 1)
+        continue;
+      ++distinct;
       loadRow(buffer, age, lo, width, params_.missing_cost, costs_.data());
       for (int j = 0; j < width; ++j)
         column_mean_[j] += costs_[j];
     }
+    const float scale = static_cast<float>(distinct - 1) / static_cast<float>(num_rows - 1) / static_cast<float>(distinct);
     for (float& m : column_mean_)
-      m /= static_cast<float>(num_rows);
+      m *= scale;
   }
 
   constexpr unsigned char kFromStop = 0x80;
@@ -92,8 +101,9 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
       const float cost = costs_[j] - column_mean_[j];
       // S: (1,0) after a move is free, after a stop it costs stop_penalty.
       const float after_stop = prev_stop_[j] + params_.stop_penalty;
-      const bool stop_from_stop = after_stop < prev_move_[j];
-      cur_stop_[j] = cost + (stop_from_stop ? after_stop : prev_move_[j]);
+      const float after_move = prev_move_[j] + params_.first_stop_penalty;
+      const bool stop_from_stop = after_stop < after_move;
+      cur_stop_[j] = cost + (stop_from_stop ? after_stop : after_move);
       // M: (1,k), k = 1..s, from either state.
       float best = inf;
       unsigned char choice = 1;
@@ -133,6 +143,7 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   result.cost = *best_it;
   result.rows = num_rows;
   result.second_cost = inf;
+  result.second_place_cost = inf;
   for (int i = 0; i < count; ++i)
   {
     if (std::abs(i - best) > params_.exclusion_radius && last_row_[i] < result.second_cost)
@@ -140,9 +151,18 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
       result.second_cost = last_row_[i];
       result.has_second = true;
     }
+    const int runs_apart = keyframe_run ? std::abs(keyframe_run[first_end + i] - keyframe_run[first_end + best]) :
+                                          std::abs(i - best);
+    if (runs_apart > params_.exclusion_radius && last_row_[i] < result.second_place_cost)
+    {
+      result.second_place_cost = last_row_[i];
+      result.has_second_place = true;
+    }
   }
   if (!result.has_second)
     result.second_cost = result.cost;
+  if (!result.has_second_place)
+    result.second_place_cost = result.cost;
 
   if (backtrack)
   {

@@ -101,6 +101,8 @@ const std::map<std::string, Setter>& setters()
     { "contrast_min_std", LOCALIZER_FIELD(float, contrast_min_std) },
     { "contrast_clamp", LOCALIZER_FIELD(float, contrast_clamp) },
     { "min_texture_ratio", LOCALIZER_FIELD(float, min_texture_ratio) },
+    { "stationary_ratio", LOCALIZER_FIELD(float, stationary_ratio) },
+    { "first_stop_penalty", LOCALIZER_FIELD(float, dtw.first_stop_penalty) },
     { "energy_normalized_cost",
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->energy_normalized_cost); } },
     { "search_radius", LOCALIZER_FIELD(int, search_radius) },

@@ -173,3 +173,30 @@ TEST(ContrastEnhancement, LongRandomVectorMatchesPlainReference)
       ASSERT_NEAR(expected[i], out[i], 2e-3) << "entry " << i << ", n = " << half_window;
   }
 }
+
+TEST(ContrastEnhancement, RunsOfRepeatedKeyframesCountOnce)
+{
+  // costs 1 1 1 4 0, keyframes 1 and 2 repeat keyframe 0: runs {1}, {4}, {0}; n = 1 run each side.
+  // run 0: window {1, 4}: mean 2.5, std 1.5 -> (1 - 2.5) / 1.5 = -1 for entries 0, 1, 2
+  // run 1: window {1, 4, 0}: mean 5/3, std sqrt(17/3 - 25/9) = sqrt(26)/3 -> (4 - 5/3) / (sqrt(26)/3) = 7/sqrt(26)
+  // run 2: window {4, 0}: mean 2, std 2 -> -1
+  const std::vector<float> costs = { 1, 1, 1, 4, 0 };
+  const std::vector<uint8_t> repeats = { 0, 1, 1, 0, 0 };
+  std::vector<float> out(5);
+  arl::ContrastRunsScratch scratch;
+  arl::enhanceContrastRuns(costs.data(), nullptr, repeats.data(), 5, 1, 0.01f, 10.0f, 0.0f, out.data(), &scratch);
+  EXPECT_NEAR(-1.0f, out[0], 1e-5);
+  EXPECT_NEAR(-1.0f, out[1], 1e-5);
+  EXPECT_NEAR(-1.0f, out[2], 1e-5);
+  EXPECT_NEAR(7.0 / std::sqrt(26.0), out[3], 1e-5);
+  EXPECT_NEAR(-1.0f, out[4], 1e-5);
+  // Counted per keyframe, the window of entry 1 is {1, 1, 1}: std 0, the true match looks neutral.
+  std::vector<float> plain(5);
+  arl::enhanceContrast(costs.data(), nullptr, 5, 1, 0.01f, 10.0f, 0.0f, plain.data());
+  EXPECT_NEAR(0.0f, plain[1], 1e-5);
+  // No repeats: the same as enhanceContrast.
+  const std::vector<uint8_t> none(5, 0);
+  arl::enhanceContrastRuns(costs.data(), nullptr, none.data(), 5, 1, 0.01f, 10.0f, 0.0f, out.data(), &scratch);
+  for (int i = 0; i < 5; ++i)
+    EXPECT_NEAR(plain[i], out[i], 1e-5) << i;
+}

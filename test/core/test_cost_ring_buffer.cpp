@@ -130,3 +130,68 @@ TEST(CostRingBuffer, MemoryIsKTimesNFloatsWhateverWasAppended)
   buffer.resize(10, 300);  // 10 * 300 * 4
   EXPECT_EQ(12000u, buffer.memoryBytes());
 }
+
+TEST(CostRingBuffer, RepeatedQueryFlagFollowsTheRowsThroughWrapAndResize)
+{
+  // K = 3, N = 4. Rows r = 0..4 with repeated_query = 0 1 1 0 1 (r = 1, 2, 4 flagged) and values
+  // 100 * r + offset. After 5 appends rows 2, 3, 4 remain: age 0 = row 4 (T), 1 = row 3 (F), 2 = row 2 (T).
+  const bool flags[5] = { false, true, true, false, true };
+  arl::CostRingBuffer buffer(3, 4);
+  for (int r = 0; r < 5; ++r)
+  {
+    float* row = buffer.appendRow(0, 4, flags[r]);
+    for (int j = 0; j < 4; ++j)
+      row[j] = 100.0f * r + j;
+    EXPECT_EQ(flags[r], buffer.repeatedQuery(0)) << "after row " << r;
+  }
+  for (int age = 0; age < 3; ++age)
+  {
+    EXPECT_EQ(flags[4 - age], buffer.repeatedQuery(age)) << "age " << age;
+    EXPECT_FLOAT_EQ(100.0f * (4 - age), buffer.row(age)[0]) << "age " << age;
+  }
+
+  // Row 5 lands in the slot row 2 (T) used, with the default flag: false, not the stale true.
+  // Ages: 0 = row 5 (F), 1 = row 4 (T), 2 = row 3 (F).
+  float* row5 = buffer.appendRow(0, 4);
+  for (int j = 0; j < 4; ++j)
+    row5[j] = 500.0f + j;
+  EXPECT_FALSE(buffer.repeatedQuery(0));
+  EXPECT_TRUE(buffer.repeatedQuery(1));
+  EXPECT_FALSE(buffer.repeatedQuery(2));
+
+  // Shrink to K = 2: rows 5 (F) and 4 (T) kept at ages 0 and 1.
+  buffer.resize(2, 4);
+  ASSERT_EQ(2, buffer.size());
+  EXPECT_FALSE(buffer.repeatedQuery(0));
+  EXPECT_TRUE(buffer.repeatedQuery(1));
+  EXPECT_FLOAT_EQ(400.0f, buffer.row(1)[0]);
+
+  // Grow to K = 5 and narrow to N = 2 (re-packed into new slots): same flags per age; then append
+  // row 6 (T): ages 0 = row 6 (T), 1 = row 5 (F), 2 = row 4 (T).
+  buffer.resize(5, 2);
+  ASSERT_EQ(2, buffer.size());
+  EXPECT_FALSE(buffer.repeatedQuery(0));
+  EXPECT_TRUE(buffer.repeatedQuery(1));
+  float* row6 = buffer.appendRow(0, 2, true);
+  row6[0] = 600.0f;
+  row6[1] = 601.0f;
+  ASSERT_EQ(3, buffer.size());
+  EXPECT_TRUE(buffer.repeatedQuery(0));
+  EXPECT_FALSE(buffer.repeatedQuery(1));
+  EXPECT_TRUE(buffer.repeatedQuery(2));
+  EXPECT_FLOAT_EQ(501.0f, buffer.at(1, 1, -1.0f));
+  EXPECT_FLOAT_EQ(401.0f, buffer.at(2, 1, -1.0f));
+
+  // Wrap the grown buffer: rows 7..10 with flags F F T F; K = 5 keeps rows 6..10:
+  // ages 0..4 = rows 10 (F), 9 (T), 8 (F), 7 (F), 6 (T).
+  const bool later[4] = { false, false, true, false };
+  for (int r = 7; r <= 10; ++r)
+    buffer.appendRow(0, 2, later[r - 7])[0] = 100.0f * r;
+  ASSERT_EQ(5, buffer.size());
+  const bool expected[5] = { false, true, false, false, true };
+  for (int age = 0; age < 5; ++age)
+  {
+    EXPECT_EQ(expected[age], buffer.repeatedQuery(age)) << "age " << age;
+    EXPECT_FLOAT_EQ(100.0f * (10 - age), buffer.row(age)[0]) << "age " << age;
+  }
+}

@@ -23,6 +23,18 @@ void appendRows(arl::CostRingBuffer& buffer, const std::vector<std::vector<float
   }
 }
 
+// As appendRows, with repeated_query[r] given to appendRow for row r.
+void appendFlaggedRows(arl::CostRingBuffer& buffer, const std::vector<std::vector<float>>& matrix,
+                       const std::vector<bool>& repeated_query)
+{
+  for (size_t r = 0; r < matrix.size(); ++r)
+  {
+    float* row = buffer.appendRow(0, static_cast<int>(matrix[r].size()), repeated_query[r]);
+    for (size_t j = 0; j < matrix[r].size(); ++j)
+      row[j] = matrix[r][j];
+  }
+}
+
 // Ones everywhere, zeros at (row, path[row]).
 std::vector<std::vector<float>> onesWithZeroPath(int width, const std::vector<int>& path)
 {
@@ -290,4 +302,184 @@ TEST(OnlineDtw, ColumnCenteringStopsAGenericKeyframeFromCarryingThePath)
   EXPECT_EQ(1, moving.path[0]);
   EXPECT_EQ(2, moving.path[1]);
   EXPECT_EQ(3, moving.path[2]);
+}
+
+TEST(OnlineDtw, FirstStopPenaltyBreaksTiesTowardsNominalSpeed)
+{
+  // 4 frames x 6 keyframes, ones except zeros at row 0: {0}, row 1: {0, 1}, row 2: {1, 2}, row 3:
+  // {2, 3} (a station: consecutive frames look like two consecutive keyframes). stop 0.3, skip 0.05.
+  // first_stop_penalty 0:
+  //   A_3(3) = 0: 0 1 2 3, one keyframe per frame, all zeros, no stop.
+  //   A_3(2) = 0: 0 0 1 2 (or 0 1 1 2, 0 1 2 2), all zeros, one stop after a move: free.
+  //   A_3(1) = 1: 0 0 1 1, zeros then the 1 at (3, 1), both stops follow a move: free.
+  //   A_3(0) = 2.6: 0 0 0 0, ones at rows 2 and 3, the first stop free, the other two 0.3 each.
+  //   A tie between ends 2 and 3; the argmin takes the first minimum in keyframe order: end 2, the
+  //   path that stopped.
+  // first_stop_penalty 0.05 (every stop after a move now pays it):
+  //   A_3(3) = 0 (no stop on 0 1 2 3); A_3(2) = 0 + 0.05 (every path to 2 in 3 rows stops at least once,
+  //   and the zero ones stop once): the nominal path is cheaper by exactly the penalty -> end 3, 0 / 4.
+  //   A_3(1) = 1 + 0.05 + 0.05 = 1.1 (0 0 1 1: two first stops; 0 1 1 1 = 1 + 0.05 + 0.3 = 1.35).
+  //   A_3(0) = 2 + 0.05 + 0.3 + 0.3 = 2.65 (only the first of the three stops follows a move).
+  std::vector<std::vector<float>> matrix(4, std::vector<float>(6, 1.0f));
+  matrix[0][0] = 0.0f;
+  matrix[1][0] = matrix[1][1] = 0.0f;
+  matrix[2][1] = matrix[2][2] = 0.0f;
+  matrix[3][2] = matrix[3][3] = 0.0f;
+  arl::CostRingBuffer buffer(4, 6);
+  appendRows(buffer, matrix);
+
+  arl::OnlineDtw free_first_stop(handParams(1));
+  const arl::SequenceMatch tied = free_first_stop.match(buffer, 0, 6, 4);
+  const std::vector<float>& tied_row = free_first_stop.lastAccumulated();
+  ASSERT_EQ(6u, tied_row.size());
+  EXPECT_NEAR(0.0f, tied_row[2], 1e-6);
+  EXPECT_NEAR(0.0f, tied_row[3], 1e-6);
+  EXPECT_NEAR(1.0f / 4, tied_row[1], 1e-6);
+  EXPECT_NEAR(2.6f / 4, tied_row[0], 1e-6);
+  EXPECT_EQ(2, tied.keyframe);
+  EXPECT_NEAR(0.0f, tied.cost, 1e-6);
+
+  arl::DtwParams params = handParams(1);
+  params.first_stop_penalty = 0.05f;
+  arl::OnlineDtw nominal(params);
+  const arl::SequenceMatch match = nominal.match(buffer, 0, 6, 4, true);
+  const std::vector<float>& row = nominal.lastAccumulated();
+  ASSERT_EQ(6u, row.size());
+  EXPECT_EQ(3, match.keyframe);
+  EXPECT_NEAR(0.0f, match.cost, 1e-6);
+  EXPECT_NEAR(0.05f / 4, row[2], 1e-6);
+  EXPECT_NEAR(0.05f / 4, row[2] - row[3], 1e-6);
+  EXPECT_NEAR(1.1f / 4, row[1], 1e-6);
+  EXPECT_NEAR(2.65f / 4, row[0], 1e-6);
+  ASSERT_EQ(4u, match.path.size());
+  for (int r = 0; r < 4; ++r)
+    EXPECT_EQ(r, match.path[r]) << "row " << r;
+}
+
+TEST(OnlineDtw, RepeatedRowsAreLeftOutOfTheColumnMean)
+{
+  // stop 0.3, skip 0.05, column centering on.
+  arl::DtwParams params = handParams(1);
+  params.column_centering = true;
+
+  // (a) K' = 3 rows of one view C = 0.4 0.1 0.6 0.3, all flagged repeatedQuery (the oldest too: it
+  // repeats a frame that has left the window; the oldest always counts as distinct). D = 1: scale
+  // (1 - 1) / (3 - 1) = 0, no centring, so A_2 is the plain recursion:
+  //   A_2(0) = 3 * 0.4 + 0.3 (the second stop)            = 1.5
+  //   A_2(1) = 0 1 1: 0.4 + 0.1 + 0.1 (one free stop)      = 0.6
+  //   A_2(2) = 1 1 2: 0.1 + 0.1 + 0.6                      = 0.8
+  //   A_2(3) = 1 1 3: 0.1 + 0.1 + 0.3 + 0.05 (one (1,2))   = 0.55 (best)
+  // Without the flags every column would be centred to 0: A_2 = 0.3 (0 0 0, one paid stop), 0, 0, 0.
+  {
+    const std::vector<std::vector<float>> same(3, { 0.4f, 0.1f, 0.6f, 0.3f });
+    arl::CostRingBuffer buffer(3, 4);
+    appendFlaggedRows(buffer, same, { true, true, true });
+    arl::OnlineDtw dtw(params);
+    const arl::SequenceMatch match = dtw.match(buffer, 0, 4, 3);
+    const float expected[4] = { 1.5f / 3, 0.6f / 3, 0.8f / 3, 0.55f / 3 };
+    ASSERT_EQ(4u, dtw.lastAccumulated().size());
+    for (int i = 0; i < 4; ++i)
+      EXPECT_NEAR(expected[i], dtw.lastAccumulated()[i], 1e-6) << "keyframe " << i;
+    EXPECT_EQ(3, match.keyframe);
+    EXPECT_NEAR(0.55f / 3, match.cost, 1e-6);
+    // The plain recursion on the same buffer gives the same row.
+    arl::OnlineDtw plain(handParams(1));
+    plain.match(buffer, 0, 4, 3);
+    for (int i = 0; i < 4; ++i)
+      EXPECT_NEAR(plain.lastAccumulated()[i], dtw.lastAccumulated()[i], 1e-6) << "keyframe " << i;
+
+    arl::CostRingBuffer unflagged(3, 4);
+    appendFlaggedRows(unflagged, same, { false, false, false });
+    dtw.match(unflagged, 0, 4, 3);
+    const float flat[4] = { 0.3f / 3, 0.0f, 0.0f, 0.0f };
+    for (int i = 0; i < 4; ++i)
+      EXPECT_NEAR(flat[i], dtw.lastAccumulated()[i], 1e-6) << "keyframe " << i;
+  }
+
+  // (b) K' = 4 rows X X X Y, oldest first, X = 0.1 0.4 1.0 0.7 and Y = 0.5 0.2 0.2 0.5, flags
+  // T T T F: the oldest X counts, the two repeats of X do not, so D = 2 distinct rows (X, Y).
+  // mean = (X + Y) / 2 * (2 - 1) / (4 - 1) = (0.6 0.6 1.2 1.2) / 6 = 0.1 0.1 0.2 0.2
+  // X' = X - mean = 0 0.3 0.8 0.5, Y' = Y - mean = 0.4 0.1 0 0.3.
+  //   A_3(0) = 0 0 0 0: 0 + 0 + 0 + 0.4 + 0.3 + 0.3 (first stop free)            = 1.0
+  //   A_3(1) = 0 0 1 1: 0 + 0 + 0.3 + 0.1, both stops after a move (0 0 0 1 ties) = 0.4
+  //   A_3(2) = 0 0 1 2: 0 + 0 + 0.3 + 0 (one free stop)                        = 0.3 (best)
+  //   A_3(3) = 0 0 1 3: 0 + 0 + 0.3 + 0.3 + 0.05 (one (1,2))                   = 0.65
+  // The plain mean over all 4 rows, (3X + Y) / 4 = 0.2 0.35 0.8 0.65 (no flags), would give
+  // A_3(2) = -0.1 - 0.1 + 0.05 - 0.6 = -0.75 instead.
+  {
+    const std::vector<float> x = { 0.1f, 0.4f, 1.0f, 0.7f };
+    const std::vector<float> y = { 0.5f, 0.2f, 0.2f, 0.5f };
+    arl::CostRingBuffer buffer(4, 4);
+    appendFlaggedRows(buffer, { x, x, x, y }, { true, true, true, false });
+    arl::OnlineDtw dtw(params);
+    const arl::SequenceMatch match = dtw.match(buffer, 0, 4, 4, true);
+    const float expected[4] = { 1.0f / 4, 0.4f / 4, 0.3f / 4, 0.65f / 4 };
+    ASSERT_EQ(4u, dtw.lastAccumulated().size());
+    for (int i = 0; i < 4; ++i)
+      EXPECT_NEAR(expected[i], dtw.lastAccumulated()[i], 1e-6) << "keyframe " << i;
+    EXPECT_EQ(2, match.keyframe);
+    EXPECT_NEAR(0.3f / 4, match.cost, 1e-6);
+    ASSERT_EQ(4u, match.path.size());
+    const int expected_path[4] = { 0, 0, 1, 2 };
+    for (int r = 0; r < 4; ++r)
+      EXPECT_EQ(expected_path[r], match.path[r]) << "row " << r;
+
+    arl::CostRingBuffer unflagged(4, 4);
+    appendFlaggedRows(unflagged, { x, x, x, y }, { false, false, false, false });
+    dtw.match(unflagged, 0, 4, 4);
+    EXPECT_NEAR(-0.75f / 4, dtw.lastAccumulated()[2], 1e-6);
+  }
+}
+
+TEST(OnlineDtw, SecondPlaceCostCountsRunsNotKeyframes)
+{
+  // kStopAndGo again: A_7 = 8.8 7.5 5.2 3.6 3.0 2.35 2.05 1.1 0.1 1.15 (AccumulatedRowMatchesHandRecursion),
+  // best end 8. keyframe_run marks keyframes 7, 8, 9 as copies of one view (run 7):
+  //   runs = 0 1 2 3 4 5 6 7 7 7.
+  // radius 0: second_cost (keyframes != 8) = A(7) = 1.1; second_place_cost (runs != 7, keyframes 0..6)
+  //           = A(6) = 2.05.
+  // radius 1: second_cost (outside keyframes [7, 9]) = A(6) = 2.05; second_place_cost (runs <= 5,
+  //           keyframes 0..5) = A(5) = 2.35.
+  // The same with candidates [2, 10) (first_end 2): keyframe_run is indexed by keyframe, not candidate.
+  // Without keyframe_run, second_place_cost = second_cost.
+  arl::CostRingBuffer buffer(8, 10);
+  appendRows(buffer, onesWithZeroPath(10, kStopAndGo));
+  const int runs[10] = { 0, 1, 2, 3, 4, 5, 6, 7, 7, 7 };
+  const float second[2] = { 1.1f / 8, 2.05f / 8 };
+  const float second_place[2] = { 2.05f / 8, 2.35f / 8 };
+  for (int radius = 0; radius < 2; ++radius)
+  {
+    arl::OnlineDtw dtw(handParams(radius));
+    for (int first_end : { 0, 2 })
+    {
+      const arl::SequenceMatch match = dtw.match(buffer, first_end, 10 - first_end, 8, false, runs);
+      EXPECT_EQ(8, match.keyframe);
+      EXPECT_NEAR(0.1f / 8, match.cost, 1e-6);
+      EXPECT_TRUE(match.has_second) << "radius " << radius << " first_end " << first_end;
+      EXPECT_NEAR(second[radius], match.second_cost, 1e-6) << "radius " << radius << " first_end " << first_end;
+      EXPECT_TRUE(match.has_second_place) << "radius " << radius << " first_end " << first_end;
+      EXPECT_NEAR(second_place[radius], match.second_place_cost, 1e-6)
+          << "radius " << radius << " first_end " << first_end;
+    }
+    const arl::SequenceMatch no_runs = dtw.match(buffer, 0, 10, 8);
+    EXPECT_TRUE(no_runs.has_second_place) << "radius " << radius;
+    EXPECT_NEAR(second[radius], no_runs.second_place_cost, 1e-6) << "radius " << radius;
+  }
+
+  // Two runs, keyframes 0..4 and 5..9: with radius 1 every candidate is within one run of run 1, so
+  // there is no second place (second_place_cost falls back to cost = 0.1 / 8), while second_cost
+  // (keyframes outside [7, 9]) is still A(6) = 2.05.
+  const int two_runs[10] = { 0, 0, 0, 0, 0, 1, 1, 1, 1, 1 };
+  arl::OnlineDtw dtw(handParams(1));
+  const arl::SequenceMatch match = dtw.match(buffer, 0, 10, 8, false, two_runs);
+  EXPECT_EQ(8, match.keyframe);
+  EXPECT_TRUE(match.has_second);
+  EXPECT_NEAR(2.05f / 8, match.second_cost, 1e-6);
+  EXPECT_FALSE(match.has_second_place);
+  EXPECT_NEAR(0.1f / 8, match.second_place_cost, 1e-6);
+  // radius 0: run 0 (keyframes 0..4) counts; its best is A(4) = 3.0.
+  arl::OnlineDtw narrow(handParams(0));
+  const arl::SequenceMatch narrow_match = narrow.match(buffer, 0, 10, 8, false, two_runs);
+  EXPECT_TRUE(narrow_match.has_second_place);
+  EXPECT_NEAR(3.0f / 8, narrow_match.second_place_cost, 1e-6);
 }

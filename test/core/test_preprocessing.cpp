@@ -432,7 +432,9 @@ TEST(PreprocessingParams, InvalidValuesAreNamedAndRejected)
   std::vector<arl::PreprocessingParams> invalid(8);
   invalid[0].output_width = 0;
   invalid[1].output_height = -4;
+  invalid[2].normalization = arl::NormalizationMethod::kPatch;
   invalid[2].patch_size = 0;
+  invalid[3].normalization = arl::NormalizationMethod::kPatch;
   invalid[3].patch_size = 7;  // 64 x 32 is not tiled by 7 x 7 patches (eq. 1)
   invalid[4].normalization = arl::NormalizationMethod::kDivisive;
   invalid[4].filter_window = 6;  // must be odd
@@ -575,9 +577,11 @@ TEST(Preprocessor, NoNormalizationAtOutputSizeIsPlainGray)
 
 TEST(Preprocessor, PatchNormalizationMatchesPlainLoopReference)
 {
-  // Default params (eq. 1, 8x8 patches, min std 2, gain 32) on a 64 x 32 mono8 input, against eq. 1
-  // written as plain loops.
-  arl::Preprocessor preprocessor;
+  // eq. 1 with the default patch parameters (8x8 patches, min std 2, gain 32) on a 64 x 32 mono8 input,
+  // against eq. 1 written as plain loops.
+  arl::PreprocessingParams params;
+  params.normalization = arl::NormalizationMethod::kPatch;
+  arl::Preprocessor preprocessor(params);
   cv::Mat input = randomImage(32, 64, CV_8UC1, 8);
   input(cv::Rect(8, 8, 8, 8)).setTo(90);  // one flat patch
   cv::Mat output;
