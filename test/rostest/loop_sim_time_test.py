@@ -7,16 +7,12 @@ import shutil
 import signal
 import subprocess
 import tempfile
-import time
 import unittest
 
 import rospy
 import rostest
-from sensor_msgs.msg import Image
-from std_srvs.srv import Trigger
 
 from along_route_localization.msg import Localization
-from along_route_localization.srv import LoadMap
 import route_fixture as fx
 
 FRAMES = 60
@@ -35,13 +31,9 @@ class LoopSimTimeTest(unittest.TestCase):
         cls.truth = [int(t['teach_frame']) for t in fx.read_ground_truth(os.path.join(cls.tmp, 'ground_truth.csv'))]
         cls.rosout = fx.RosoutCollector()
         cls.localizations = fx.Collector('/repeat/localization', Localization, queue_size=10000)
-        teach_preprocessed = fx.Collector('/teach/image_preprocessed', Image)
-        fx.wait_for_service('/teach/map_recorder/finish')
-        fx.wait_for_service('/repeat/localizer/load_map')
-        fx.play(os.path.join(cls.tmp, 'teach.bag'), {fx.CAMERA_TOPIC: '/teach_camera/image_raw'}, extra=['--clock'])
-        fx.wait_for(lambda: teach_preprocessed.count() >= FRAMES, 30, 'the teach drive to be preprocessed')
-        assert rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)().success
-        loaded = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(cls.map_path)
+        finish, loaded = fx.teach_and_load(os.path.join(cls.tmp, 'teach.bag'), FRAMES, cls.map_path,
+                                           play_extra=['--clock'])
+        assert finish.success, finish.message
         assert loaded.success, loaded.message
 
         player = subprocess.Popen(['rosbag', 'play', '-q', '-d', '1', '--clock', '--loop',

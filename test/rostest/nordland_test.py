@@ -15,11 +15,8 @@ import unittest
 
 import rospy
 import rostest
-from sensor_msgs.msg import Image
-from std_srvs.srv import Trigger
 
 from along_route_localization.msg import Localization
-from along_route_localization.srv import LoadMap
 import route_fixture as fx
 
 DATA = os.path.normpath(os.path.join(os.path.realpath(fx.PACKAGE_DIR), '..', 'shared', 'data', 'nordland'))
@@ -60,13 +57,7 @@ class NordlandTest(unittest.TestCase):
                         '--output', cls.offline_csv], check=True, timeout=300)
 
         cls.localizations = fx.Collector('/repeat/localization', Localization, queue_size=1000)
-        teach_preprocessed = fx.Collector('/teach/image_preprocessed', Image, queue_size=1000)
-        fx.wait_for_service('/teach/map_recorder/finish')
-        fx.wait_for_service('/repeat/localizer/load_map')
-        fx.play(os.path.join(cls.tmp, 'summer.bag'), {fx.CAMERA_TOPIC: '/teach_camera/image_raw'})
-        fx.wait_for(lambda: teach_preprocessed.count() >= COUNT, 60, 'the summer frames to be preprocessed')
-        cls.finish = rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)()
-        cls.loaded = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(cls.map_path)
+        cls.finish, cls.loaded = fx.teach_and_load(os.path.join(cls.tmp, 'summer.bag'), COUNT, cls.map_path)
         fx.play(os.path.join(cls.tmp, 'winter.bag'), {fx.CAMERA_TOPIC: '/repeat_camera/image_raw'})
         fx.wait_for(lambda: cls.localizations.count() >= COUNT, 60, 'a Localization per winter frame')
         cls.answers = cls.localizations.take()

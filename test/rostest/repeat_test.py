@@ -13,7 +13,6 @@ import rospy
 import rostest
 from dynamic_reconfigure.client import Client as ReconfigureClient
 from sensor_msgs.msg import Image
-from std_srvs.srv import Trigger
 
 from along_route_localization.msg import Localization
 from along_route_localization.srv import LoadMap
@@ -38,17 +37,10 @@ class RepeatTest(unittest.TestCase):
         cls.truth = fx.read_ground_truth(os.path.join(cls.tmp, 'ground_truth.csv'))
         cls.localizations = fx.Collector('/repeat/localization', Localization)
         cls.debug_images = fx.Collector('/repeat/localization_debug_image', Image)
-        teach_preprocessed = fx.Collector('/teach/image_preprocessed', Image)
-        fx.wait_for_service('/teach/map_recorder/finish')
-        fx.wait_for_service('/repeat/localizer/load_map')
-        load_map = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)
-
-        # Teach, then load the map into the running localizer.
-        fx.play(os.path.join(cls.tmp, 'teach.bag'), {fx.CAMERA_TOPIC: '/teach_camera/image_raw'})
-        fx.wait_for(lambda: teach_preprocessed.count() >= FRAMES, 30, 'the teach drive to be preprocessed')
-        cls.finish = rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)()
-        cls.missing = load_map(os.path.join(cls.tmp, 'no_such_map.bag'))
-        cls.loaded = load_map(cls.map_path)
+        # Teach, then load the map into the running localizer; a missing map is refused and the
+        # loaded one kept.
+        cls.finish, cls.loaded = fx.teach_and_load(os.path.join(cls.tmp, 'teach.bag'), FRAMES, cls.map_path)
+        cls.missing = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(os.path.join(cls.tmp, 'no_such_map.bag'))
 
         # First drive: the generator's repeat run (other light, stops, slow stretches, heading offsets).
         fx.play(os.path.join(cls.tmp, 'repeat.bag'), {fx.CAMERA_TOPIC: '/repeat_camera/image_raw'})

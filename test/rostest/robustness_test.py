@@ -15,7 +15,6 @@ import rostest
 from dynamic_reconfigure.client import Client as ReconfigureClient
 from nodelet.srv import NodeletLoad, NodeletUnload
 from sensor_msgs.msg import Image
-from std_srvs.srv import Trigger
 
 from along_route_localization.msg import Localization
 from along_route_localization.srv import LoadMap
@@ -46,13 +45,8 @@ class RobustnessTest(unittest.TestCase):
         cls.localizations = fx.Collector('/repeat/localization', Localization, queue_size=10000)
         cls.camera = rospy.Publisher('/repeat_camera/image_raw', Image, queue_size=10000)
         cls.direct = rospy.Publisher('/repeat/image_preprocessed', Image, queue_size=100)
-        teach_preprocessed = fx.Collector('/teach/image_preprocessed', Image)
-        fx.wait_for_service('/teach/map_recorder/finish')
-        fx.wait_for_service('/repeat/localizer/load_map')
-        fx.play(os.path.join(cls.tmp, 'teach.bag'), {fx.CAMERA_TOPIC: '/teach_camera/image_raw'})
-        fx.wait_for(lambda: teach_preprocessed.count() >= FRAMES, 30, 'the teach drive to be preprocessed')
-        assert rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)().success
-        loaded = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(cls.map_path)
+        finish, loaded = fx.teach_and_load(os.path.join(cls.tmp, 'teach.bag'), FRAMES, cls.map_path)
+        assert finish.success, finish.message
         assert loaded.success, loaded.message
         fx.wait_for(lambda: cls.camera.get_num_connections() > 0 and cls.direct.get_num_connections() > 0, 30,
                     'the nodelets to subscribe')

@@ -136,6 +136,25 @@ def map_keyframes(path):
     return keyframes, preprocessing
 
 
+def teach_and_load(teach_bag, frames, map_path, play_extra=()):
+    """For a test launching teach.launch in teach/ (camera /teach_camera/image_raw) and repeat.launch in
+    repeat/: plays teach_bag (camera on CAMERA_TOPIC) into the teach pipeline, waits until its `frames`
+    images were preprocessed, finishes the map and loads it into the localizer.
+    Returns (finish response, load_map response)."""
+    from sensor_msgs.msg import Image
+    from std_srvs.srv import Trigger
+    from along_route_localization.srv import LoadMap
+    preprocessed = Collector('/teach/image_preprocessed', Image, queue_size=max(1000, frames))
+    wait_for_service('/teach/map_recorder/finish')
+    wait_for_service('/repeat/localizer/load_map')
+    play(teach_bag, {CAMERA_TOPIC: '/teach_camera/image_raw'}, extra=play_extra)
+    wait_for(lambda: preprocessed.count() >= frames, 60, 'the teach drive to be preprocessed')
+    finish = rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)()
+    loaded = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(map_path)
+    preprocessed.subscriber.unregister()
+    return finish, loaded
+
+
 def remove(*paths):
     for path in paths:
         for candidate in (path, path + '.active'):
