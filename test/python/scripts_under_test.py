@@ -16,6 +16,16 @@ def load(name):
     return module
 
 
+def built_executable(name):
+    """Path of the package's built program `name` in the sourced catkin workspace (devel or install), or
+    None when no workspace with it is sourced."""
+    for prefix in os.environ.get('CMAKE_PREFIX_PATH', '').split(os.pathsep):
+        path = os.path.join(prefix, 'lib', 'along_route_localization', name)
+        if prefix and os.access(path, os.X_OK):
+            return path
+    return None
+
+
 def ros_python_available():
     try:
         import genpy  # noqa: F401

@@ -5,6 +5,7 @@ import csv
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import unittest
 
@@ -16,16 +17,10 @@ except ImportError:  # pragma: no cover - depends on the machine
     cv2 = None
 
 
-def find_runner():
-    """The localize_offline of the sourced catkin workspace (devel or install), or None."""
-    for prefix in os.environ.get('CMAKE_PREFIX_PATH', '').split(os.pathsep):
-        path = os.path.join(prefix, 'lib', 'along_route_localization', 'localize_offline')
-        if prefix and os.access(path, os.X_OK):
-            return path
-    return None
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # finds scripts_under_test
+from scripts_under_test import built_executable  # noqa: E402
 
-
-RUNNER = find_runner()
+RUNNER = built_executable('localize_offline')
 
 
 @unittest.skipIf(RUNNER is None or cv2 is None,

@@ -19,17 +19,14 @@ import rostest
 from along_route_localization.msg import Localization
 import route_fixture as fx
 
+sys.path.insert(0, os.path.join(fx.PACKAGE_DIR, 'test', 'python'))
+from scripts_under_test import built_executable  # noqa: E402
+
 DATA = os.path.normpath(os.path.join(os.path.realpath(fx.PACKAGE_DIR), '..', 'shared', 'data', 'nordland'))
 FIRST, COUNT = 1000, 300   # the stretch of test/core/test_localizer.cpp: stations and a tunnel
 TRACKING = (Localization.STATUS_TRACKING, Localization.STATUS_END_OF_ROUTE)
 
 
-def find_runner():
-    for prefix in os.environ.get('CMAKE_PREFIX_PATH', '').split(os.pathsep):
-        path = os.path.join(prefix, 'lib', 'along_route_localization', 'localize_offline')
-        if prefix and os.access(path, os.X_OK):
-            return path
-    return None
 
 
 @unittest.skipUnless(os.path.isdir(os.path.join(DATA, 'summer')) and os.path.isdir(os.path.join(DATA, 'winter')),
@@ -53,7 +50,7 @@ class NordlandTest(unittest.TestCase):
                             os.path.join(cls.tmp, season + '.bag'), '--rate', '20'],
                            check=True, timeout=120, stdout=subprocess.DEVNULL)
         cls.offline_csv = os.path.join(cls.tmp, 'offline.csv')
-        subprocess.run([find_runner(), '--quiet', '--map', folders['summer'], '--query', folders['winter'],
+        subprocess.run([built_executable('localize_offline'), '--quiet', '--map', folders['summer'], '--query', folders['winter'],
                         '--output', cls.offline_csv], check=True, timeout=300)
 
         cls.localizations = fx.Collector('/repeat/localization', Localization, queue_size=1000)
