@@ -137,6 +137,8 @@ public:
 
 private:
   void rebuildComparators();
+  /// First image row compared: below the sky rows, leaving at least one row.
+  int firstComparedRow() const;
   void computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query, int first,
                   int width);
 

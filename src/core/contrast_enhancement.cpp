@@ -6,18 +6,30 @@
 namespace along_route_localization
 {
 
-void enhanceContrast(const float* costs, const uint8_t* informative, int count, int half_window, float min_std,
-                     float clamp, float neutral, float* out)
+namespace
 {
-  // Running sums over the sliding window of informative entries; doubles keep them exact enough.
+
+/// eq. 2 for one entry: (cost - mean) / max(std, min_std), clamped to [-clamp, clamp].
+float enhanced(double cost, double mean, double std, float min_std, float clamp)
+{
+  const double z = (cost - mean) / std::max(static_cast<double>(min_std), std);
+  return static_cast<float>(std::min<double>(clamp, std::max<double>(-clamp, z)));
+}
+
+/// The statistics of eq. 2's window: for each of `count` items, the number, mean and population std of
+/// the values of the used items in [i - half_window, i + half_window], with running sums (doubles keep
+/// them exact enough). Calls emit(i, n, mean, std); mean and std are 0 when n is 0.
+template <class Value, class Used, class Emit>
+void slidingWindowStatistics(int count, int half_window, Value value, Used used, Emit emit)
+{
   double sum = 0.0, sum_sq = 0.0;
   int n = 0;
-  const auto use = [&](int i) { return informative == nullptr || informative[i] != 0; };
   const auto add = [&](int i, int sign) {
-    if (i < 0 || i >= count || !use(i))
+    if (i < 0 || i >= count || !used(i))
       return;
-    sum += sign * static_cast<double>(costs[i]);
-    sum_sq += sign * static_cast<double>(costs[i]) * costs[i];
+    const double v = value(i);
+    sum += sign * v;
+    sum_sq += sign * v * v;
     n += sign;
   };
   for (int i = 0; i < std::min(half_window, count); ++i)
@@ -26,16 +38,22 @@ void enhanceContrast(const float* costs, const uint8_t* informative, int count, 
   {
     add(i + half_window, +1);
     add(i - half_window - 1, -1);
-    if (!use(i) || n < 2)
-    {
-      out[i] = neutral;
-      continue;
-    }
-    const double mean = sum / n;
-    const double std = std::sqrt(std::max(0.0, sum_sq / n - mean * mean));
-    const double z = (costs[i] - mean) / std::max(static_cast<double>(min_std), std);  // eq. 2
-    out[i] = static_cast<float>(std::min<double>(clamp, std::max<double>(-clamp, z)));
+    const double mean = n > 0 ? sum / n : 0.0;
+    emit(i, n, mean, n > 0 ? std::sqrt(std::max(0.0, sum_sq / n - mean * mean)) : 0.0);
   }
+}
+
+}  // namespace
+
+void enhanceContrast(const float* costs, const uint8_t* informative, int count, int half_window, float min_std,
+                     float clamp, float neutral, float* out)
+{
+  const auto used = [&](int i) { return informative == nullptr || informative[i] != 0; };
+  slidingWindowStatistics(
+      count, half_window, [&](int i) { return static_cast<double>(costs[i]); }, used,
+      [&](int i, int n, double mean, double std) {
+        out[i] = (!used(i) || n < 2) ? neutral : enhanced(costs[i], mean, std, min_std, clamp);
+      });
 }
 
 void enhanceContrastRuns(const float* costs, const uint8_t* informative, const uint8_t* repeats, int count,
@@ -64,37 +82,20 @@ void enhanceContrastRuns(const float* costs, const uint8_t* informative, const u
   s.run_mean.resize(runs);
   s.run_std.resize(runs);
   s.run_n.resize(runs);
-  double sum = 0.0, sum_sq = 0.0;
-  int n = 0;
-  const auto add = [&](int r, int sign) {
-    if (r < 0 || r >= runs || !s.run_informative[r])
-      return;
-    const double c = s.run_cost[r];
-    sum += sign * c;
-    sum_sq += sign * c * c;
-    n += sign;
-  };
-  for (int r = 0; r < std::min(half_window, runs); ++r)
-    add(r, +1);
-  for (int r = 0; r < runs; ++r)
-  {
-    add(r + half_window, +1);
-    add(r - half_window - 1, -1);
-    s.run_n[r] = n;
-    const double mean = n > 0 ? sum / n : 0.0;
-    s.run_mean[r] = static_cast<float>(mean);
-    s.run_std[r] = n > 0 ? static_cast<float>(std::sqrt(std::max(0.0, sum_sq / n - mean * mean))) : 0.0f;
-  }
+  slidingWindowStatistics(
+      runs, half_window, [&](int r) { return static_cast<double>(s.run_cost[r]); },
+      [&](int r) { return s.run_informative[r] != 0; },
+      [&](int r, int n, double mean, double std) {
+        s.run_n[r] = n;
+        s.run_mean[r] = static_cast<float>(mean);
+        s.run_std[r] = static_cast<float>(std);
+      });
   for (int i = 0; i < count; ++i)
   {
     const int r = s.run_of[i];
-    if ((informative != nullptr && !informative[i]) || s.run_n[r] < 2)
-    {
-      out[i] = neutral;
-      continue;
-    }
-    const double z = (costs[i] - s.run_mean[r]) / std::max(static_cast<double>(min_std), static_cast<double>(s.run_std[r]));
-    out[i] = static_cast<float>(std::min<double>(clamp, std::max<double>(-clamp, z)));
+    out[i] = ((informative != nullptr && !informative[i]) || s.run_n[r] < 2) ?
+                 neutral :
+                 enhanced(costs[i], s.run_mean[r], s.run_std[r], min_std, clamp);
   }
 }
 

@@ -127,7 +127,7 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
   for (size_t k = 0; k < map_->size(); ++k)
     values[k] = map_->energy(k);
   median_energy_ = median(values);
-  const int sky = std::min(map_->params().skyRows(), map_->height() - 1);
+  const int sky = firstComparedRow();
   keyframe_change_.assign(map_->size(), 0.0f);
   for (size_t k = 1; k < map_->size(); ++k)
     keyframe_change_[k] =
@@ -163,7 +163,7 @@ void Localizer::setParams(const LocalizerParams& params)
   // A featureless keyframe shows no view: it neither starts nor ends a run (it joins the run before it).
   // An informative keyframe repeats the view of the last informative keyframe before it, or not.
   keyframe_repeats_.assign(map_->size(), 0);
-  const int sky = std::min(map_->params().skyRows(), map_->height() - 1);
+  const int sky = firstComparedRow();
   int last_informative = keyframe_informative_[0] ? 0 : -1;
   for (size_t k = 1; k < map_->size(); ++k)
   {
@@ -190,10 +190,15 @@ void Localizer::setParams(const LocalizerParams& params)
     rebuildComparators();
 }
 
+int Localizer::firstComparedRow() const
+{
+  return std::min(map_->params().skyRows(), map_->height() - 1);  // at least one row below the sky
+}
+
 void Localizer::rebuildComparators()
 {
-  const int w = map_->width(), h = map_->height(), sky = map_->params().skyRows();
-  const int first_row = std::min(sky, h - 1);
+  const int w = map_->width(), h = map_->height();
+  const int first_row = firstComparedRow();
   difference_.reset(new ImageDifference(w, h, first_row, params_.max_shift_px, params_.subpixel_shift));
   census_difference_.reset();
   keyframe_census_.clear();
@@ -280,7 +285,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   ++frames_;
   const int n = static_cast<int>(map_->size());
   LocalizationResult result;
-  const int first_row = std::min(map_->params().skyRows(), map_->height() - 1);
+  const int first_row = firstComparedRow();
   const float query_energy = textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows());
   result.query_informative = query_energy >= min_texture_energy_;
 
