@@ -1,9 +1,14 @@
 // Google Benchmark of the per-frame work: preprocessing, the image difference over the map, the DTW
 // update, the whole Localizer::process while tracking and while searching globally, a straightforward
 // implementation for comparison, and a memory-read baseline over the same keyframe bytes.
-// All data is synthetic with fixed seeds. scripts/run_benchmarks runs it and prints the ratios.
+// All data is synthetic with fixed seeds, except the BM_Nordland* pair: the whole real route (1788
+// summer keyframes, 1788 winter queries), localized by the Localizer and by the straightforward
+// implementation, skipped with a message when the frames are not there. scripts/run_benchmarks runs it
+// and prints the ratios.
 //
 // Names carry the map size as "keyframes:N" so that the script can pair figures of one run.
+#include <dirent.h>
+
 #include <algorithm>
 #include <climits>
 #include <cmath>
@@ -18,6 +23,7 @@
 
 #include <benchmark/benchmark.h>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "along_route_localization/contrast_enhancement.h"
 #include "along_route_localization/cost_ring_buffer.h"
@@ -508,6 +514,240 @@ void BM_GlobalRelocalization(benchmark::State& state)
   state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(map->keyframeBytes()) * n);
 }
 BENCHMARK(BM_GlobalRelocalization)->Apply(mapSizeArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+// ------------------------------------------------------------------------------------------------
+// The real route: every winter query of the Nordland frames against the 1788 summer keyframes, frame
+// aligned (the truth of query q is keyframe q). Frames are read and preprocessed once, outside the
+// timed loops, as localize_offline does (cv::imread unchanged, default PreprocessingParams); the timed
+// loop is what localize_offline times as "localizing": constructing the Localizer and process() per
+// query. Its loading (PNG decoding) is timed end to end by scripts/run_benchmarks.
+
+#ifndef ALONG_ROUTE_SOURCE_DIR
+#define ALONG_ROUTE_SOURCE_DIR "."
+#endif
+
+struct NordlandRoute
+{
+  std::string folder;
+  std::string error;  // empty when loaded
+  std::shared_ptr<arl::RouteMap> map;
+  std::vector<cv::Mat> queries;
+};
+
+/// $ALONG_ROUTE_NORDLAND, else ../shared/data/nordland beside the package's source folder.
+std::string nordlandFolder()
+{
+  const char* env = std::getenv("ALONG_ROUTE_NORDLAND");
+  if (env && *env)
+    return env;
+  return std::string(ALONG_ROUTE_SOURCE_DIR) + "/../shared/data/nordland";
+}
+
+/// Sorted names of the PNG files in `folder`; false when the folder cannot be opened.
+bool pngNames(const std::string& folder, std::vector<std::string>* names)
+{
+  DIR* dir = opendir(folder.c_str());
+  if (!dir)
+    return false;
+  while (const dirent* entry = readdir(dir))
+  {
+    const std::string name = entry->d_name;
+    if (name.size() > 4 && name.compare(name.size() - 4, 4, ".png") == 0)
+      names->push_back(name);
+  }
+  closedir(dir);
+  std::sort(names->begin(), names->end());
+  return true;
+}
+
+/// The format localize_offline's frame source gives a decoded image (src/ros/frame_source.cpp).
+bool formatOfDecoded(const cv::Mat& image, arl::PixelFormat* format)
+{
+  switch (image.type())
+  {
+    case CV_8UC1:
+      *format = arl::PixelFormat::kMono8;
+      return true;
+    case CV_16UC1:
+      *format = arl::PixelFormat::kMono16;
+      return true;
+    case CV_8UC3:
+      *format = arl::PixelFormat::kBgr8;
+      return true;
+    case CV_8UC4:
+      *format = arl::PixelFormat::kBgra8;
+      return true;
+  }
+  return false;
+}
+
+bool preprocessFile(const std::string& path, arl::Preprocessor& preprocessor, cv::Mat& output, std::string* error)
+{
+  const cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
+  arl::PixelFormat format;
+  if (image.empty() || !formatOfDecoded(image, &format))
+  {
+    *error = "cannot read " + path + " as an 8-bit or 16-bit image";
+    return false;
+  }
+  preprocessor.process(image, format, output);
+  return true;
+}
+
+/// Loaded once and shared by the BM_Nordland* benchmarks.
+const NordlandRoute& nordlandRoute()
+{
+  static NordlandRoute route;
+  static bool loaded = false;
+  if (loaded)
+    return route;
+  loaded = true;
+  route.folder = nordlandFolder();
+  std::vector<std::string> summer, winter;
+  if (!pngNames(route.folder + "/summer", &summer) || !pngNames(route.folder + "/winter", &winter) ||
+      summer.empty())
+  {
+    route.error = "Nordland frames not found in " + route.folder +
+                  "/{summer,winter} (set ALONG_ROUTE_NORDLAND to the folder holding them)";
+    return route;
+  }
+  if (summer != winter)
+  {
+    route.error = "Nordland summer/ and winter/ in " + route.folder + " are not frame-aligned (file names differ)";
+    return route;
+  }
+  const arl::PreprocessingParams params = arl::PreprocessingParams();  // localize_offline's defaults
+  arl::Preprocessor preprocessor(params);
+  route.map = std::make_shared<arl::RouteMap>(params);
+  route.map->reserve(summer.size());
+  cv::Mat frame;
+  for (size_t i = 0; i < summer.size(); ++i)
+  {
+    if (!preprocessFile(route.folder + "/summer/" + summer[i], preprocessor, frame, &route.error))
+      return route;
+    route.map->addKeyframe(frame, static_cast<int64_t>(i));  // the stamps localize_offline gives a folder
+  }
+  route.queries.resize(winter.size());
+  for (size_t i = 0; i < winter.size(); ++i)
+    if (!preprocessFile(route.folder + "/winter/" + winter[i], preprocessor, route.queries[i], &route.error))
+      return route;
+  return route;
+}
+
+/// Frames answered within one keyframe of the truth (query index), over all queries.
+double shareWithinOne(const std::vector<int>& keyframes)
+{
+  size_t within = 0;
+  for (size_t q = 0; q < keyframes.size(); ++q)
+    within += keyframes[q] >= 0 && std::abs(keyframes[q] - static_cast<int>(q)) <= 1 ? 1 : 0;
+  return keyframes.empty() ? 0.0 : static_cast<double>(within) / keyframes.size();
+}
+
+/// localize_offline's loop: a Localizer with the default parameters (parallel global searches) fed
+/// every query in order. `global_searches` counts the frames that searched the whole map (the localizer
+/// was not tracking when they arrived).
+std::vector<int> localizeRoute(const NordlandRoute& route, int* global_searches)
+{
+  arl::Localizer localizer(route.map, arl::LocalizerParams());
+  std::vector<int> keyframes(route.queries.size());
+  bool tracking = false;
+  *global_searches = 0;
+  for (size_t q = 0; q < route.queries.size(); ++q)
+  {
+    *global_searches += tracking ? 0 : 1;
+    const arl::LocalizationResult result = localizer.process(route.queries[q]);
+    keyframes[q] = result.keyframe;
+    tracking = result.status == arl::LocalizationStatus::kTracking ||
+               result.status == arl::LocalizationStatus::kEndOfRoute;
+  }
+  return keyframes;
+}
+
+void BM_NordlandLocalizer(benchmark::State& state)
+{
+  const NordlandRoute& route = nordlandRoute();
+  if (!route.error.empty())
+  {
+    state.SkipWithError(route.error.c_str());
+    return;
+  }
+  std::vector<int> keyframes;
+  int global_searches = 0;
+  for (auto _ : state)
+  {
+    keyframes = localizeRoute(route, &global_searches);
+    benchmark::DoNotOptimize(keyframes.data());
+  }
+  state.counters["keyframes"] = static_cast<double>(route.map->size());
+  state.counters["queries"] = static_cast<double>(route.queries.size());
+  state.counters["within_1"] = shareWithinOne(keyframes);
+  state.counters["global_search_frames"] = global_searches;
+  state.SetItemsProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(route.queries.size()));
+}
+BENCHMARK(BM_NordlandLocalizer)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+// The straightforward implementation of the same run (as BM_StraightforwardFrame, on the real frames):
+// every query against every keyframe with the plain-loop row, eq. 2 over the whole row and the DTW over
+// the whole map, one thread. It searches globally on every frame and has none of the Localizer's
+// refinements (sub-pixel shift, energy-normalized cost, featureless and stationary handling), so its
+// answers differ: both accuracies are reported (within_1), and how often the two agree.
+void BM_NordlandStraightforward(benchmark::State& state)
+{
+  const NordlandRoute& route = nordlandRoute();
+  if (!route.error.empty())
+  {
+    state.SkipWithError(route.error.c_str());
+    return;
+  }
+  const arl::RouteMap& map = *route.map;
+  const int n = static_cast<int>(map.size());
+  if (map.width() != kWidth || map.height() != kHeight || map.params().skyRows() != 0)
+  {
+    state.SkipWithError("the straightforward row is written for 64 x 32 frames without sky rows");
+    return;
+  }
+  const arl::LocalizerParams params = arl::LocalizerParams();  // localize_offline's defaults
+  std::vector<float> costs(n), shifts(n), reference_costs(n), reference_shifts(n);
+  // Its row is the Localizer's raw SAD row (integer shifts, before energy normalization), or the
+  // comparison means nothing: checked on a few real queries against the optimized code.
+  const arl::ImageDifference difference(kWidth, kHeight, 0, kMaxShiftPx, false);
+  for (size_t q = 0; q < route.queries.size(); q += 300)
+  {
+    difference.compareMany(route.queries[q].data, map.data(), n, reference_costs.data(), reference_shifts.data());
+    straightforwardRow(route.queries[q].data, map.data(), n, costs.data(), shifts.data());
+    if (costs != reference_costs)
+    {
+      state.SkipWithError("straightforward and optimized SAD disagree on the Nordland frames");
+      return;
+    }
+  }
+  int global_searches = 0;
+  const std::vector<int> localizer_keyframes = localizeRoute(route, &global_searches);
+  std::vector<int> keyframes(route.queries.size());
+  for (auto _ : state)
+  {
+    arl::CostRingBuffer ring(params.ring_buffer_rows, n);
+    arl::OnlineDtw dtw(params.dtw);
+    for (size_t q = 0; q < route.queries.size(); ++q)
+    {
+      straightforwardRow(route.queries[q].data, map.data(), n, costs.data(), shifts.data());
+      arl::enhanceContrast(costs.data(), nullptr, n, params.contrast_window, params.contrast_min_std,
+                           params.contrast_clamp, 0.0f, ring.appendRow(0, n));
+      keyframes[q] = dtw.match(ring, 0, n, params.ring_buffer_rows, true).keyframe;
+    }
+    benchmark::DoNotOptimize(keyframes.data());
+  }
+  size_t agree = 0;
+  for (size_t q = 0; q < keyframes.size(); ++q)
+    agree += std::abs(keyframes[q] - localizer_keyframes[q]) <= 1 ? 1 : 0;
+  state.counters["keyframes"] = n;
+  state.counters["queries"] = static_cast<double>(route.queries.size());
+  state.counters["within_1"] = shareWithinOne(keyframes);
+  state.counters["localizer_within_1"] = shareWithinOne(localizer_keyframes);
+  state.counters["agree_with_localizer_within_1"] = static_cast<double>(agree) / keyframes.size();
+  state.SetItemsProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(route.queries.size()));
+}
+BENCHMARK(BM_NordlandStraightforward)->UseRealTime()->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
