@@ -62,6 +62,35 @@ class DefinitionTest(unittest.TestCase):
         self.assertEqual(a, b)
         self.assertNotEqual(a, c)
 
+    def test_distractor_plan_is_route_like_and_never_this_route(self):
+        count = 200
+        plan = scenarios.distractor_plan(count, 1000, np.random.default_rng([5, 4]), ("summer", "winter"))
+        self.assertEqual(len(plan), 1000)
+        self.assertEqual({e["season"] for e in plan}, {"summer", "winter"})
+        stretch_keys = [(e["season"], e["blend_weight"], e["shift_rows"], e["gain"]) for e in plan]
+        lengths = [n for _, n in runs(stretch_keys)]
+        self.assertTrue(all(20 <= n <= 100 for n in lengths[:-1]), lengths)   # the last one is cut at 1000
+        for a, b in zip(plan, plan[1:]):
+            if (a["season"], a["gain"]) == (b["season"], b["gain"]):   # within a stretch: consecutive frames
+                self.assertEqual(b["frame"], a["frame"] + 1)
+        for e in plan:
+            self.assertTrue(0 <= e["frame"] < count)
+            distance = (e["blend_frame"] - e["frame"]) % count
+            self.assertTrue(count // 4 <= min(distance, count - distance), e)
+            self.assertIn(e["shift_rows"], (-4, -3, -2, 2, 3, 4))
+            self.assertTrue(0.25 <= e["blend_weight"] <= 0.4 and 0.75 <= e["gain"] <= 1.25, e)
+        summer_only = scenarios.distractor_plan(count, 300, np.random.default_rng([5, 4]))
+        self.assertEqual({e["season"] for e in summer_only}, {"summer"})
+
+    def test_distractor_image_mirrors_blends_shifts_and_scales(self):
+        image = np.array([[10, 20, 30], [40, 50, 60], [70, 80, 90]], np.uint8)
+        blend = np.full((3, 3), 100, np.uint8)
+        # mirrored: rows [30 20 10], [60 50 40], [90 80 70]; blend 0.5 with 100; down 1 row, top row replicated
+        out = scenarios.distractor_image(image, blend, 0.5, 1, 2.0)
+        np.testing.assert_array_equal(out, [[130, 120, 110], [130, 120, 110], [160, 150, 140]])
+        out = scenarios.distractor_image(image, blend, 0.0, -1, 3.0)   # up 1 row; 90 * 3 saturates
+        np.testing.assert_array_equal(out, [[180, 150, 120], [255, 240, 210], [255, 240, 210]])
+
     def test_heading_offsets(self):
         shifts = scenarios.heading_offsets(2000, np.random.default_rng([3, 3]))
         self.assertEqual(len(shifts), 2000)
@@ -125,6 +154,35 @@ class WriteTest(unittest.TestCase):
         # heading offset: 12 frames are too few for a stretch (first one starts at 20 or later): nothing shifted
         rows = self.ground_truth("heading_offset")
         self.assertTrue(all(r["true_shift_px"] == "0" for r in rows))
+        self.assertFalse(os.path.exists(os.path.join(self.out, "distractors")), "only made when asked for")
+
+    def test_distractors_follow_the_route_in_the_map(self):
+        code, err = self.run_main(["--output", self.out, "--data", self.data, "--scenarios", "distractors",
+                                   "--distractors", "30", "--distractor-seasons", "summer,winter"])
+        self.assertEqual(code, 0, err)
+        folder = os.path.join(self.out, "distractors")
+        map_files = sorted(os.listdir(os.path.join(folder, "map")))
+        self.assertEqual(map_files, ["%05d.png" % k for k in range(42)])
+        self.assertEqual(len(os.listdir(os.path.join(folder, "query"))), 12)
+        # the route first, as in aligned: links to the summer frames in order
+        self.assertEqual(os.path.realpath(os.path.join(folder, "map", "00011.png")),
+                         os.path.realpath(os.path.join(self.data, "summer", "images-00120.png")))
+        self.assertEqual([int(r["keyframe"]) for r in self.ground_truth("distractors")], list(range(12)))
+        with open(os.path.join(folder, "distractors.csv")) as f:
+            made = list(csv.DictReader(f))
+        self.assertEqual([int(r["keyframe"]) for r in made], list(range(12, 42)))
+        for r in made:
+            path = os.path.join(folder, "map", "%05d.png" % int(r["keyframe"]))
+            self.assertFalse(os.path.islink(path))
+            distractor = self.cv2.imread(path)
+            # mirrored: the fake frames' dark left and bright right edge columns swap sides
+            self.assertTrue((distractor[:, 0] >= 190).all() and (distractor[:, 7] == 0).all(), r)
+            frame, blend_frame = int(r["frame"]), int(r["blend_frame"])
+            expected = scenarios.distractor_image(
+                self.cv2.imread(os.path.join(self.data, r["season"], "images-%05d.png" % (10 * (frame + 1)))),
+                self.cv2.imread(os.path.join(self.data, r["season"], "images-%05d.png" % (10 * (blend_frame + 1)))),
+                float(r["blend_weight"]), int(r["shift_rows"]), float(r["gain"]))
+            np.testing.assert_allclose(distractor, expected, atol=1)   # csv rounds weight and gain to 4 decimals
 
     def test_stationary_frames_are_marked(self):
         # summer frames 4 and 5 identical (the train stands), winter frame 9 differs from 8 by 1 gray level only
@@ -188,6 +246,13 @@ class WriteTest(unittest.TestCase):
             return int(np.frombuffer(msg.data, np.uint8)[3 * 3])
         self.assertEqual(pixel(messages["map"][1]), 10 * 2 + 40)     # keyframe 1 = summer frame 2
         self.assertEqual(pixel(messages["query"][3]), 10 * 3 + 45)   # query 3 = winter frame 3
+        # distractors: the map bag holds the route and then the distractors
+        code, err = self.run_main(["--output", self.out, "--data", self.data, "--scenarios", "distractors", "--bags",
+                                   "--distractors", "5"])
+        self.assertEqual(code, 0, err)
+        for name, count in (("map", 17), ("query", 12)):
+            with rosbag.Bag(os.path.join(self.out, "distractors", name + ".bag")) as bag:
+                self.assertEqual(bag.get_message_count(), count)
 
     def test_bad_input(self):
         code, err = self.run_main(["--output", self.out, "--data", os.path.join(self.tmp, "missing")])
