@@ -9,6 +9,10 @@
 #include <opencv2/core.hpp>
 #include <opencv2/core/hal/intrin.hpp>
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
+
 namespace along_route_localization
 {
 
@@ -146,6 +150,78 @@ void sadsSimdBlocks(const uint8_t* query, const uint8_t* keyframe, int width, in
 }
 #endif
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#define ALONG_ROUTE_AVX512_SAD 1
+
+/// AVX-512BW kernel, chosen at run time, for strips of at most 64 columns: a strip row fits one
+/// register. Each query row is loaded once and compared with the keyframe row at kShifts shifts, one
+/// accumulator per shift (psadbw: 8 lanes of 8-byte sums): one instruction per row and shift instead
+/// of 3.5 with 16-byte vectors (whole-map search at 1k keyframes: 290 -> 180 ns per keyframe).
+/// The query row is loaded masked to the strip (zeros beyond it). The keyframe loads are plain
+/// 64-byte loads that run past the strip's end: the lanes holding those bytes are left out of the total
+/// when the strip is a whole number of lanes; otherwise, and where a plain load could leave the image
+/// (the last rows), the keyframe loads are masked to the strip too.
+template <int kShifts, bool kMaskedKeyframe>
+__attribute__((target("avx512bw"), always_inline)) inline void addRowSadsAvx512(const uint8_t* query_row,
+                                                                              const uint8_t* keyframe_row,
+                                                                              __mmask64 strip, __m512i* sums)
+{
+  const __m512i q = _mm512_maskz_loadu_epi8(strip, query_row);
+  for (int i = 0; i < kShifts; ++i)  // shift i reads keyframe_row - i: constant offsets, no index register
+  {
+    const __m512i k = kMaskedKeyframe ? _mm512_maskz_loadu_epi8(strip, keyframe_row - i) :
+                                        _mm512_loadu_si512(keyframe_row - i);
+    sums[i] = _mm512_add_epi64(sums[i], _mm512_sad_epu8(q, k));
+  }
+}
+
+/// Needs count >= kShifts.
+template <int kShifts>
+__attribute__((target("avx512bw"))) void sadsAvx512(const uint8_t* query, const uint8_t* keyframe, int width,
+                                                    int first_row, int height, int max_shift, int columns,
+                                                    int first_shift, int count, uint32_t* sums)
+{
+  const __mmask64 strip = columns >= 64 ? ~static_cast<__mmask64>(0) : (static_cast<__mmask64>(1) << columns) - 1;
+  const int lanes = (columns + 7) / 8;
+  // Plain loads start at most 2m bytes into a row; rows [first_row, plain_end) keep them inside the image.
+  int plain_end = first_row;
+  const int room = height * width - 2 * max_shift - 64;
+  if (columns % 8 == 0 && room >= 0)
+    plain_end = std::min(height, std::max(first_row, room / width + 1));
+  const size_t first = static_cast<size_t>(first_row) * width + max_shift;
+  for (int done = 0; done < count; done += kShifts)
+  {
+    const int start = std::min(done, count - kShifts);  // a last, partial pass overlaps the previous one
+    __m512i acc[kShifts];
+    for (int i = 0; i < kShifts; ++i)
+      acc[i] = _mm512_setzero_si512();
+    const uint8_t* q = query + first;
+    const uint8_t* k = keyframe + first - (first_shift + start);  // shift first_shift + start + i at k - i
+    int y = first_row;
+    for (; y < plain_end; ++y, q += width, k += width)
+      addRowSadsAvx512<kShifts, false>(q, k, strip, acc);
+    for (; y < height; ++y, q += width, k += width)
+      addRowSadsAvx512<kShifts, true>(q, k, strip, acc);
+    alignas(64) uint64_t lane[kShifts][8];
+    for (int i = 0; i < kShifts; ++i)
+      _mm512_store_si512(lane[i], acc[i]);
+    for (int i = 0; i < kShifts; ++i)
+    {
+      uint64_t total = 0;
+      for (int l = 0; l < lanes; ++l)
+        total += lane[i][l];
+      sums[start + i] = static_cast<uint32_t>(total);
+    }
+  }
+}
+
+bool hasAvx512bw()
+{
+  static const bool supported = __builtin_cpu_supports("avx512bw");
+  return supported;
+}
+#endif
+
 /// Geometry of the compared strip, fixed per ImageDifference.
 struct Strip
 {
@@ -157,6 +233,16 @@ struct Strip
   void sads(const uint8_t* query, const uint8_t* keyframe, int first_shift, int count, uint32_t* sums) const
   {
     const int strip = columns();
+#ifdef ALONG_ROUTE_AVX512_SAD
+    if (strip <= 64 && hasAvx512bw())
+    {
+      if (count >= 9)  // 2m + 1 with the default m = 4
+        sadsAvx512<9>(query, keyframe, width, first_row, height, max_shift, strip, first_shift, count, sums);
+      else
+        sadsAvx512<1>(query, keyframe, width, first_row, height, max_shift, strip, first_shift, count, sums);
+      return;
+    }
+#endif
 #if CV_SIMD128
     if (strip >= 16)
     {
