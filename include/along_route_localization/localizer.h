@@ -15,6 +15,7 @@
 #include "along_route_localization/online_dtw.h"
 #include "along_route_localization/route_map.h"
 #include "along_route_localization/seqslam.h"
+#include "along_route_localization/track_status.h"
 
 namespace along_route_localization
 {
@@ -74,9 +75,15 @@ struct LocalizerParams
   DtwParams dtw = localizerDtwDefaults();  ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
   int min_init_frames = 5;            ///< frames before the first global answer
+  /// Consecutive informative frames whose global answer is confident and advances 0..max_step keyframes
+  /// per frame before tracking starts (GlobalConfirmation).
+  int init_confirm_frames = 5;
   double confidence_threshold = 0.2;  ///< below it a frame counts as low-confidence
   float confidence_scale = 0.5f;      ///< per-row cost margin that maps to confidence 1 - 1/e
-  int lost_after_frames = 10;         ///< consecutive low-confidence frames before a global search
+  /// Lost (global search again) when lost_after_frames of the last lost_window_frames informative
+  /// frames were low-confidence (LossDetector). Featureless frames do not count.
+  int lost_after_frames = 6;
+  int lost_window_frames = 8;
   int end_of_route_keyframes = 2;     ///< a match this close to the last keyframe reports kEndOfRoute
   double horizontal_fov_rad = 1.0;    ///< camera horizontal field of view, for the homing angle
   bool parallel = true;               ///< spread global searches over cores
@@ -168,7 +175,8 @@ private:
 
   LocalizationStatus status_ = LocalizationStatus::kInitializing;
   int last_match_ = -1;
-  int low_confidence_frames_ = 0;
+  GlobalConfirmation confirmation_;
+  LossDetector loss_;
   uint64_t frames_ = 0;
   std::vector<int> last_path_;
   cv::Mat entered_query_;                  // the last query that entered the ring buffer (empty: none)

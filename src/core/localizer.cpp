@@ -77,8 +77,11 @@ std::string LocalizerParams::validate() const
     e << "confidence_threshold must be in [0, 1], got " << confidence_threshold;
   else if (!(confidence_scale > 0.0f))
     e << "confidence_scale must be > 0, got " << confidence_scale;
-  else if (lost_after_frames < 1)
-    e << "lost_after_frames must be >= 1, got " << lost_after_frames;
+  else if (init_confirm_frames < 1)
+    e << "init_confirm_frames must be >= 1, got " << init_confirm_frames;
+  else if (lost_after_frames < 1 || lost_after_frames > lost_window_frames)
+    e << "lost_after_frames must be in [1, lost_window_frames = " << lost_window_frames << "], got "
+      << lost_after_frames;
   else if (end_of_route_keyframes < 0)
     e << "end_of_route_keyframes must be >= 0, got " << end_of_route_keyframes;
   else if (!(horizontal_fov_rad > 0.0 && horizontal_fov_rad < M_PI))
@@ -152,6 +155,8 @@ void Localizer::setParams(const LocalizerParams& params)
                                    params.cost_function != params_.cost_function;
   params_ = params;
   dtw_.setParams(params_.dtw);
+  confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
+  loss_.configure(params_.lost_after_frames, params_.lost_window_frames);
   const int rows = std::max(params_.ring_buffer_rows,
                             params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : 0);
   ring_.resize(rows, static_cast<int>(map_->size()));
@@ -217,7 +222,8 @@ void Localizer::reset()
   ring_.clear();
   status_ = LocalizationStatus::kInitializing;
   last_match_ = -1;
-  low_confidence_frames_ = 0;
+  confirmation_.clear();
+  loss_.clear();
   frames_ = 0;
   last_path_.clear();
   entered_query_.release();
@@ -298,10 +304,10 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
                                              status_ == LocalizationStatus::kEndOfRoute);
   const bool global = params_.method == SequenceMethod::kSeqSlam || !tracking;
   int first = 0, width = n;
+  const int predicted = std::min(n - 1, last_match_ + 1);  // while tracking: one keyframe per frame
   if (!global)
   {
     // The robot moves forward at most max_step keyframes a frame; centre the band one step ahead.
-    const int predicted = last_match_ + 1;
     first = std::max(0, predicted - params_.search_radius);
     width = std::min(n, predicted + params_.search_radius + 1) - first;
   }
@@ -314,6 +320,10 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   else
     match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, true, keyframe_run_.data());
   last_path_ = match.path;
+  // A window without evidence (featureless rows only, e.g. a tunnel longer than K frames) ties every
+  // end keyframe: dead-reckon at the nominal speed instead of taking the first of the ties.
+  if (!global && dtw_.lastAccumulated()[predicted - first] <= match.cost)
+    match.keyframe = predicted;
 
   // Confidence: how much cheaper per row the best path is than the best path ending elsewhere. The
   // reported confidence is about the keyframe (a copy of the same view nearby competes); tracking and
@@ -329,27 +339,26 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
 
   const bool confident =
       confidenceFrom(match.has_second_place, match.second_place_cost) >= params_.confidence_threshold;
-  if (!tracking)
+  if (params_.method == SequenceMethod::kSeqSlam)
   {
-    if (ring_.size() >= params_.min_init_frames && confident && params_.method == SequenceMethod::kOnlineDtw)
+    if (ring_.size() >= params_.min_init_frames)
+      status_ = LocalizationStatus::kTracking;  // the baseline has no notion of being lost
+  }
+  else if (!tracking)
+  {
+    if (ring_.size() >= params_.min_init_frames &&
+        confirmation_.update(match.keyframe, confident, result.query_informative))
     {
       status_ = LocalizationStatus::kTracking;
-      low_confidence_frames_ = 0;
-    }
-    else if (params_.method == SequenceMethod::kSeqSlam && ring_.size() >= params_.min_init_frames)
-    {
-      status_ = LocalizationStatus::kTracking;  // the baseline has no notion of being lost
+      confirmation_.clear();
+      loss_.clear();
     }
   }
-  else
+  else if (loss_.update(confident, result.query_informative))
   {
-    low_confidence_frames_ = confident ? 0 : low_confidence_frames_ + 1;
-    if (low_confidence_frames_ >= params_.lost_after_frames)
-    {
-      status_ = LocalizationStatus::kLost;
-      ring_.clear();  // the rows behind a lost track describe the wrong place
-      low_confidence_frames_ = 0;
-    }
+    status_ = LocalizationStatus::kLost;
+    ring_.clear();  // the rows behind a lost track describe the wrong place
+    loss_.clear();
   }
   if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
   {

@@ -121,6 +121,8 @@ const std::map<std::string, Setter>& setters()
     { "confidence_threshold", LOCALIZER_FIELD(double, confidence_threshold) },
     { "confidence_scale", LOCALIZER_FIELD(float, confidence_scale) },
     { "lost_after_frames", LOCALIZER_FIELD(int, lost_after_frames) },
+    { "lost_window_frames", LOCALIZER_FIELD(int, lost_window_frames) },
+    { "init_confirm_frames", LOCALIZER_FIELD(int, init_confirm_frames) },
     { "end_of_route_keyframes", LOCALIZER_FIELD(int, end_of_route_keyframes) },
     { "horizontal_fov_deg",
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) {

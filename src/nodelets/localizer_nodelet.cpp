@@ -149,7 +149,7 @@ LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh
   static const std::set<std::string> dynamic = { "method", "ring_buffer_rows", "max_step", "max_shift_px",
                                                  "contrast_window", "search_radius", "confidence_threshold",
                                                  "stop_penalty", "skip_penalty", "horizontal_fov_deg",
-                                                 "lost_after_frames" };
+                                                 "lost_after_frames", "lost_window_frames" };
   LocalizerParams params;
   PreprocessingParams ignored;  // the preprocessor's business
   for (const std::string& name : parameterNames())
@@ -231,6 +231,8 @@ void LocalizerNodelet::configCb(LocalizerConfig& config, uint32_t /*level*/)
   // Corrections, so the panel shows the values in use.
   if (config.search_radius < config.max_step)
     config.search_radius = config.max_step;
+  if (config.lost_window_frames < config.lost_after_frames)
+    config.lost_window_frames = config.lost_after_frames;
   if (map_width_ > 0 && config.max_shift_px > largestShiftFor(map_width_))
   {
     NODELET_WARN("max_shift_px %d leaves nothing to compare in %d px wide images; using %d", config.max_shift_px,

@@ -35,6 +35,7 @@ LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams params)
   params.dtw.skip_penalty = static_cast<float>(config.skip_penalty);
   params.horizontal_fov_rad = config.horizontal_fov_deg * M_PI / 180.0;
   params.lost_after_frames = config.lost_after_frames;
+  params.lost_window_frames = config.lost_window_frames;
   return params;
 }
 

@@ -49,8 +49,10 @@ class RepeatTest(unittest.TestCase):
 
         # Out-of-range values are corrected by the nodelet and the corrected values returned.
         cls.reconfigure = ReconfigureClient('/repeat/localizer', timeout=30)
-        cls.corrected = cls.reconfigure.update_configuration({'max_shift_px': 100, 'max_step': 3, 'search_radius': 1})
-        cls.reconfigure.update_configuration({'max_shift_px': 4, 'max_step': 2, 'search_radius': 40})
+        cls.corrected = cls.reconfigure.update_configuration({'max_shift_px': 100, 'max_step': 3, 'search_radius': 1,
+                                                               'lost_after_frames': 12, 'lost_window_frames': 4})
+        cls.reconfigure.update_configuration({'max_shift_px': 4, 'max_step': 2, 'search_radius': 40,
+                                              'lost_after_frames': 6, 'lost_window_frames': 8})
 
         # Second drive: the teach images again, with their own stamps, so time goes back as when a bag
         # loops (the localizer restarts); frames 40..79 shifted right by 2 px (camera yawed left). Half
@@ -113,6 +115,7 @@ class RepeatTest(unittest.TestCase):
     def test_out_of_range_values_are_corrected(self):
         self.assertEqual(self.corrected['max_shift_px'], 31)   # (64 - 1) // 2 leaves one compared column
         self.assertEqual(self.corrected['search_radius'], 3)   # at least max_step
+        self.assertEqual(self.corrected['lost_window_frames'], 12)  # at least lost_after_frames
 
     def test_ring_buffer_rows_change_mid_stream(self):
         self.assertEqual(self.reconfigured['ring_buffer_rows'], 10)

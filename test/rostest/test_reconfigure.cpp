@@ -21,7 +21,7 @@ TEST(Reconfigure, LocalizerCfgDefaultsAreTheCoreDefaults)
   arl::LocalizerParams base;
   base.method = arl::SequenceMethod::kSeqSlam;
   base.ring_buffer_rows = base.dtw.max_step = base.max_shift_px = base.contrast_window = base.search_radius =
-      base.lost_after_frames = 999;
+      base.lost_after_frames = base.lost_window_frames = 999;
   base.confidence_threshold = base.horizontal_fov_rad = 0.999;
   base.dtw.stop_penalty = base.dtw.skip_penalty = 999.0f;
   const arl::LocalizerParams cfg = arl::toParams(arl::LocalizerConfig::__getDefault__(), base);
@@ -33,6 +33,7 @@ TEST(Reconfigure, LocalizerCfgDefaultsAreTheCoreDefaults)
   EXPECT_EQ(core.contrast_window, cfg.contrast_window);
   EXPECT_EQ(core.search_radius, cfg.search_radius);
   EXPECT_EQ(core.lost_after_frames, cfg.lost_after_frames);
+  EXPECT_EQ(core.lost_window_frames, cfg.lost_window_frames);
   EXPECT_DOUBLE_EQ(core.confidence_threshold, cfg.confidence_threshold);
   EXPECT_FLOAT_EQ(core.dtw.stop_penalty, cfg.dtw.stop_penalty);
   EXPECT_FLOAT_EQ(core.dtw.skip_penalty, cfg.dtw.skip_penalty);

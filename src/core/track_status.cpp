@@ -1,0 +1,65 @@
+#include "along_route_localization/track_status.h"
+
+#include <algorithm>
+
+namespace along_route_localization
+{
+
+void GlobalConfirmation::configure(int frames, int max_step)
+{
+  frames_ = std::max(1, frames);
+  max_step_ = std::max(1, max_step);
+  clear();
+}
+
+void GlobalConfirmation::clear()
+{
+  count_ = 0;
+  previous_keyframe_ = -1;
+  frames_since_previous_ = 0;
+}
+
+bool GlobalConfirmation::update(int keyframe, bool confident, bool informative)
+{
+  ++frames_since_previous_;
+  if (!informative)
+    return false;
+  const int advance = keyframe - previous_keyframe_;
+  const bool consistent =
+      previous_keyframe_ >= 0 && advance >= 0 && advance <= max_step_ * frames_since_previous_;
+  count_ = !confident ? 0 : (consistent ? count_ + 1 : 1);
+  previous_keyframe_ = keyframe;
+  frames_since_previous_ = 0;
+  return count_ >= frames_;
+}
+
+void LossDetector::configure(int low_frames, int window)
+{
+  window = std::max(1, window);
+  low_frames_ = std::min(std::max(1, low_frames), window);
+  history_.assign(static_cast<size_t>(window), 0);
+  clear();
+}
+
+void LossDetector::clear()
+{
+  std::fill(history_.begin(), history_.end(), 0);
+  next_ = filled_ = low_count_ = 0;
+}
+
+bool LossDetector::update(bool confident, bool informative)
+{
+  if (!informative)
+    return false;
+  const int window = static_cast<int>(history_.size());
+  if (filled_ == window)
+    low_count_ -= history_[next_];  // the oldest frame leaves the window
+  else
+    ++filled_;
+  history_[next_] = confident ? 0 : 1;
+  low_count_ += history_[next_];
+  next_ = (next_ + 1) % window;
+  return low_count_ >= low_frames_;
+}
+
+}  // namespace along_route_localization
