@@ -7,8 +7,6 @@
 // and prints the ratios.
 //
 // Names carry the map size as "keyframes:N" so that the script can pair figures of one run.
-#include <dirent.h>
-
 #include <algorithm>
 #include <climits>
 #include <cmath>
@@ -18,12 +16,12 @@
 #include <map>
 #include <memory>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <benchmark/benchmark.h>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "along_route_localization/contrast_enhancement.h"
 #include "along_route_localization/cost_ring_buffer.h"
@@ -32,6 +30,7 @@
 #include "along_route_localization/online_dtw.h"
 #include "along_route_localization/preprocessing.h"
 #include "along_route_localization/route_map.h"
+#include "ros/frame_source.h"
 
 namespace arl = along_route_localization;
 
@@ -543,57 +542,6 @@ std::string nordlandFolder()
   return std::string(ALONG_ROUTE_SOURCE_DIR) + "/../shared/data/nordland";
 }
 
-/// Sorted names of the PNG files in `folder`; false when the folder cannot be opened.
-bool pngNames(const std::string& folder, std::vector<std::string>* names)
-{
-  DIR* dir = opendir(folder.c_str());
-  if (!dir)
-    return false;
-  while (const dirent* entry = readdir(dir))
-  {
-    const std::string name = entry->d_name;
-    if (name.size() > 4 && name.compare(name.size() - 4, 4, ".png") == 0)
-      names->push_back(name);
-  }
-  closedir(dir);
-  std::sort(names->begin(), names->end());
-  return true;
-}
-
-/// The format localize_offline's frame source gives a decoded image (src/ros/frame_source.cpp).
-bool formatOfDecoded(const cv::Mat& image, arl::PixelFormat* format)
-{
-  switch (image.type())
-  {
-    case CV_8UC1:
-      *format = arl::PixelFormat::kMono8;
-      return true;
-    case CV_16UC1:
-      *format = arl::PixelFormat::kMono16;
-      return true;
-    case CV_8UC3:
-      *format = arl::PixelFormat::kBgr8;
-      return true;
-    case CV_8UC4:
-      *format = arl::PixelFormat::kBgra8;
-      return true;
-  }
-  return false;
-}
-
-bool preprocessFile(const std::string& path, arl::Preprocessor& preprocessor, cv::Mat& output, std::string* error)
-{
-  const cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
-  arl::PixelFormat format;
-  if (image.empty() || !formatOfDecoded(image, &format))
-  {
-    *error = "cannot read " + path + " as an 8-bit or 16-bit image";
-    return false;
-  }
-  preprocessor.process(image, format, output);
-  return true;
-}
-
 /// Loaded once and shared by the BM_Nordland* benchmarks.
 const NordlandRoute& nordlandRoute()
 {
@@ -603,34 +551,21 @@ const NordlandRoute& nordlandRoute()
     return route;
   loaded = true;
   route.folder = nordlandFolder();
-  std::vector<std::string> summer, winter;
-  if (!pngNames(route.folder + "/summer", &summer) || !pngNames(route.folder + "/winter", &winter) ||
-      summer.empty())
+  // The frame source of localize_offline itself (src/ros/frame_source.h): the same decoding and
+  // preprocessing as the runner.
+  try
   {
-    route.error = "Nordland frames not found in " + route.folder +
-                  "/{summer,winter} (set ALONG_ROUTE_NORDLAND to the folder holding them)";
-    return route;
+    arl::PreprocessingParams params;  // localize_offline's defaults
+    route.map = arl::loadMapFromPath(route.folder + "/summer", "", &params);
+    route.queries = arl::loadPreprocessedFrames(route.folder + "/winter", "", params);
+    if (route.map->size() != route.queries.size())
+      route.error = "Nordland summer/ and winter/ in " + route.folder + " hold different numbers of frames";
   }
-  if (summer != winter)
+  catch (const std::exception& e)
   {
-    route.error = "Nordland summer/ and winter/ in " + route.folder + " are not frame-aligned (file names differ)";
-    return route;
+    route.error = std::string("Nordland frames not loaded (set ALONG_ROUTE_NORDLAND to the folder holding "
+                              "summer/ and winter/): ") + e.what();
   }
-  const arl::PreprocessingParams params = arl::PreprocessingParams();  // localize_offline's defaults
-  arl::Preprocessor preprocessor(params);
-  route.map = std::make_shared<arl::RouteMap>(params);
-  route.map->reserve(summer.size());
-  cv::Mat frame;
-  for (size_t i = 0; i < summer.size(); ++i)
-  {
-    if (!preprocessFile(route.folder + "/summer/" + summer[i], preprocessor, frame, &route.error))
-      return route;
-    route.map->addKeyframe(frame, static_cast<int64_t>(i));  // the stamps localize_offline gives a folder
-  }
-  route.queries.resize(winter.size());
-  for (size_t i = 0; i < winter.size(); ++i)
-    if (!preprocessFile(route.folder + "/winter/" + winter[i], preprocessor, route.queries[i], &route.error))
-      return route;
   return route;
 }
 
