@@ -74,8 +74,23 @@ public:
   const std::vector<float>& lastAccumulated() const { return last_row_; }
 
 private:
+  /// The columns [lo, lo + width) a match looks at, and how.
+  struct Window
+  {
+    int lo = 0, width = 0, rows = 0;
+    bool backtrack = false;
+  };
+  /// Per column chunk: the rows being accumulated, the centred costs and the column means.
+  struct Columns
+  {
+    std::vector<float> prev_move, prev_stop, cur_move, cur_stop, costs, mean;
+  };
+  /// The recurrence for window columns [begin, end): the newest row into final_*, steps when backtracking.
+  void accumulateColumns(const CostRingBuffer& buffer, const Window& window, int begin, int end, Columns& scratch);
+
   DtwParams params_;
-  std::vector<float> prev_move_, prev_stop_, cur_move_, cur_stop_, costs_, last_row_, column_mean_;
+  std::vector<Columns> columns_;  // one per chunk (wide windows are split over threads)
+  std::vector<float> final_move_, final_stop_, last_row_;
   // Backtracking, rows x width per state: bits 0-4 the step k, bit 7 set when it came from state S.
   std::vector<unsigned char> move_steps_, stop_steps_;
 };

@@ -1,8 +1,12 @@
 #include "along_route_localization/online_dtw.h"
 
 #include <algorithm>
+#include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <stdexcept>
+
+#include <opencv2/core.hpp>
 
 namespace along_route_localization
 {
@@ -10,15 +14,111 @@ namespace along_route_localization
 namespace
 {
 
-/// Fills `out[j]` with the cost of keyframe lo + j in the row of that age (missing outside its band).
-void loadRow(const CostRingBuffer& buffer, int age, int lo, int width, float missing, float* out)
+constexpr unsigned char kFromStop = 0x80;
+// Windows at least this wide (a global search) are split into column chunks run by cv::parallel_for_.
+constexpr int kParallelMinWidth = 4096;
+constexpr int kMinChunkWidth = 2048;
+
+/// Calls op(j, cost) for every column j of [0, width) of the window starting at keyframe lo: the row's
+/// cost of keyframe lo + j, or `missing` outside its band. Three plain loops, no test per element.
+template <typename Op>
+void forEachCost(const CostRingBuffer& buffer, int age, int lo, int width, float missing, Op op)
 {
-  const int first = buffer.rowFirst(age), band = buffer.rowWidth(age);
+  const int first = buffer.rowFirst(age);
+  const int begin = std::min(std::max(first - lo, 0), width);
+  const int end = std::min(std::max(first + buffer.rowWidth(age) - lo, begin), width);
   const float* row = buffer.row(age);
-  for (int j = 0; j < width; ++j)
+  for (int j = 0; j < begin; ++j)
+    op(j, missing);
+  for (int j = begin; j < end; ++j)
+    op(j, row[lo + j - first]);
+  for (int j = end; j < width; ++j)
+    op(j, missing);
+}
+
+/// Columns [from, to) of one row of the recurrence in online_dtw.h, each with `steps` columns to its left:
+/// cur_* from prev_* and the centred costs, plus the step bytes with kSteps. S > 0 fixes steps at compile
+/// time, so the loop over k unrolls and the loop over j vectorizes. The ternaries are the strict-< chain
+/// of the scalar form: k ascending, M before S, a later candidate wins only if strictly smaller.
+template <int S, bool kSteps>
+void updateColumns(const DtwParams& params, const float* __restrict prev_move, const float* __restrict prev_stop,
+                   const float* __restrict cost, int from, int to, int steps, float* __restrict cur_move,
+                   float* __restrict cur_stop, unsigned char* __restrict move_steps,
+                   unsigned char* __restrict stop_steps)
+{
+  const int s = S > 0 ? S : steps;
+  const float inf = std::numeric_limits<float>::infinity();
+  const float stop_penalty = params.stop_penalty, first_stop_penalty = params.first_stop_penalty;
+  float penalty[17];
+  for (int k = 1; k <= s; ++k)
+    penalty[k] = static_cast<float>(k - 1) * params.skip_penalty;
+  for (int j = from; j < to; ++j)
   {
-    const int offset = lo + j - first;
-    out[j] = (offset >= 0 && offset < band) ? row[offset] : missing;
+    // S: (1,0) after a move costs first_stop_penalty, after a stop stop_penalty.
+    const float after_stop = prev_stop[j] + stop_penalty;
+    const float after_move = prev_move[j] + first_stop_penalty;
+    const bool stop_from_stop = after_stop < after_move;
+    cur_stop[j] = cost[j] + (stop_from_stop ? after_stop : after_move);
+    // M: (1,k), k = 1..s, from either state.
+    float best = inf;
+    int choice = 1;  // as wide as a float, so the selections vectorize
+    for (int k = 1; k <= s; ++k)
+    {
+      const float from_move = prev_move[j - k] + penalty[k];
+      choice = from_move < best ? k : choice;
+      best = from_move < best ? from_move : best;
+      const float from_stop = prev_stop[j - k] + penalty[k];
+      choice = from_stop < best ? (k | kFromStop) : choice;
+      best = from_stop < best ? from_stop : best;
+    }
+    cur_move[j] = cost[j] + best;
+    if (kSteps)
+    {
+      move_steps[j] = static_cast<unsigned char>(choice);
+      stop_steps[j] = static_cast<unsigned char>(stop_from_stop ? kFromStop : 0);
+    }
+  }
+}
+
+/// Columns [from, to) of one row (step bytes when move_steps is given); column j has min(j, s) to its left.
+template <int S, bool kSteps>
+void updateRow(const DtwParams& params, const float* prev_move, const float* prev_stop, const float* cost, int from,
+               int to, float* cur_move, float* cur_stop, unsigned char* move_steps, unsigned char* stop_steps)
+{
+  const int s = params.max_step;
+  int j = from;
+  for (; j < std::min(s, to); ++j)
+    updateColumns<0, kSteps>(params, prev_move, prev_stop, cost, j, j + 1, j, cur_move, cur_stop, move_steps,
+                             stop_steps);
+  updateColumns<S, kSteps>(params, prev_move, prev_stop, cost, j, to, s, cur_move, cur_stop, move_steps, stop_steps);
+}
+
+template <int S>
+void updateRow(const DtwParams& params, const float* prev_move, const float* prev_stop, const float* cost, int from,
+               int to, float* cur_move, float* cur_stop, unsigned char* move_steps, unsigned char* stop_steps)
+{
+  if (move_steps)
+    updateRow<S, true>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+  else
+    updateRow<S, false>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, nullptr, nullptr);
+}
+
+/// updateRow with max_step fixed at compile time for the usual values.
+void updateRow(const DtwParams& params, const float* prev_move, const float* prev_stop, const float* cost, int from,
+               int to, float* cur_move, float* cur_stop, unsigned char* move_steps, unsigned char* stop_steps)
+{
+  switch (params.max_step)
+  {
+    case 1:
+      return updateRow<1>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+    case 2:
+      return updateRow<2>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+    case 3:
+      return updateRow<3>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+    case 4:
+      return updateRow<4>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+    default:
+      return updateRow<0>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
   }
 }
 
@@ -38,105 +138,113 @@ void OnlineDtw::setParams(const DtwParams& params)
   params_ = params;
 }
 
-SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int count, int rows, bool backtrack,
-                                const int* keyframe_run)
+void OnlineDtw::accumulateColumns(const CostRingBuffer& buffer, const Window& window, int begin, int end,
+                                  Columns& scratch)
 {
-  SequenceMatch result;
-  const int num_rows = std::min(rows, buffer.size());
-  if (num_rows <= 0 || count <= 0)
-    return result;
-  const int s = params_.max_step;
-  // Older rows only matter where a path ending in [first_end, first_end + count) can have been.
-  const int lo = std::max(0, first_end - (num_rows - 1) * s);
-  const int hi = first_end + count;  // exclusive
-  const int width = hi - lo;
-  const size_t cells = static_cast<size_t>(num_rows) * width;
-  prev_move_.resize(width);
-  prev_stop_.resize(width);
-  cur_move_.resize(width);
-  cur_stop_.resize(width);
-  costs_.resize(width);
-  if (backtrack)
-  {
-    move_steps_.resize(cells);
-    stop_steps_.resize(cells);
-  }
-
-  column_mean_.assign(width, 0.0f);
-  if (params_.column_centering && num_rows > 1)
+  // A path ending in [begin, end) only visits columns >= begin - (rows - 1) * s: start there (cells left
+  // of `begin` are computed but not kept, and are right wherever such a path can pass).
+  const int start = std::max(0, begin - (window.rows - 1) * params_.max_step);
+  const int width = end - start, own = begin - start, lo = window.lo + start;
+  const float missing = params_.missing_cost;
+  scratch.prev_move.resize(width);
+  scratch.prev_stop.resize(width);
+  scratch.cur_move.resize(width);
+  scratch.cur_stop.resize(width);
+  scratch.costs.resize(width);
+  scratch.mean.assign(width, 0.0f);
+  float* mean = scratch.mean.data();
+  if (params_.column_centering && window.rows > 1)
   {
     // Rows of a repeated query carry no new evidence about which keyframes resemble every query: the
     // mean runs over the distinct rows and shrinks by (distinct - 1) / (rows - 1), so a window of one
     // view repeated K times is not centred to zero everywhere.
     int distinct = 0;
-    for (int age = 0; age < num_rows; ++age)
+    for (int age = 0; age < window.rows; ++age)
     {
-      if (buffer.repeatedQuery(age) && age != num_rows - 1)
+      if (buffer.repeatedQuery(age) && age != window.rows - 1)
         continue;
       ++distinct;
-      loadRow(buffer, age, lo, width, params_.missing_cost, costs_.data());
-      for (int j = 0; j < width; ++j)
-        column_mean_[j] += costs_[j];
+      forEachCost(buffer, age, lo, width, missing, [mean](int j, float c) { mean[j] += c; });
     }
-    const float scale = static_cast<float>(distinct - 1) / static_cast<float>(num_rows - 1) / static_cast<float>(distinct);
-    for (float& m : column_mean_)
-      m *= scale;
-  }
-
-  constexpr unsigned char kFromStop = 0x80;
-  const float inf = std::numeric_limits<float>::infinity();
-  loadRow(buffer, num_rows - 1, lo, width, params_.missing_cost, costs_.data());
-  for (int j = 0; j < width; ++j)
-  {
-    prev_move_[j] = costs_[j] - column_mean_[j];  // a path may start in either state
-    prev_stop_[j] = inf;
-  }
-  for (int age = num_rows - 2, r = 1; age >= 0; --age, ++r)
-  {
-    loadRow(buffer, age, lo, width, params_.missing_cost, costs_.data());
-    unsigned char* move_row = backtrack ? move_steps_.data() + static_cast<size_t>(r) * width : nullptr;
-    unsigned char* stop_row = backtrack ? stop_steps_.data() + static_cast<size_t>(r) * width : nullptr;
+    const float scale =
+        static_cast<float>(distinct - 1) / static_cast<float>(window.rows - 1) / static_cast<float>(distinct);
     for (int j = 0; j < width; ++j)
-    {
-      const float cost = costs_[j] - column_mean_[j];
-      // S: (1,0) after a move is free, after a stop it costs stop_penalty.
-      const float after_stop = prev_stop_[j] + params_.stop_penalty;
-      const float after_move = prev_move_[j] + params_.first_stop_penalty;
-      const bool stop_from_stop = after_stop < after_move;
-      cur_stop_[j] = cost + (stop_from_stop ? after_stop : after_move);
-      // M: (1,k), k = 1..s, from either state.
-      float best = inf;
-      unsigned char choice = 1;
-      for (int k = 1; k <= s && k <= j; ++k)
-      {
-        const float penalty = static_cast<float>(k - 1) * params_.skip_penalty;
-        if (prev_move_[j - k] + penalty < best)
-        {
-          best = prev_move_[j - k] + penalty;
-          choice = static_cast<unsigned char>(k);
-        }
-        if (prev_stop_[j - k] + penalty < best)
-        {
-          best = prev_stop_[j - k] + penalty;
-          choice = static_cast<unsigned char>(k | kFromStop);
-        }
-      }
-      cur_move_[j] = cost + best;
-      if (backtrack)
-      {
-        move_row[j] = choice;
-        stop_row[j] = stop_from_stop ? kFromStop : 0;
-      }
-    }
-    prev_move_.swap(cur_move_);
-    prev_stop_.swap(cur_stop_);
+      mean[j] *= scale;
   }
 
-  const int end_offset = first_end - lo;
+  // The oldest row: a path starts in state M.
+  float* prev_move = scratch.prev_move.data();
+  forEachCost(buffer, window.rows - 1, lo, width, missing,
+              [prev_move, mean](int j, float c) { prev_move[j] = c - mean[j]; });
+  std::fill(scratch.prev_stop.begin(), scratch.prev_stop.end(), std::numeric_limits<float>::infinity());
+  float* costs = scratch.costs.data();
+  for (int age = window.rows - 2, r = 1; age >= 0; --age, ++r)
+  {
+    forEachCost(buffer, age, lo, width, missing, [costs, mean](int j, float c) { costs[j] = c - mean[j]; });
+    unsigned char* move_row = nullptr;
+    unsigned char* stop_row = nullptr;
+    if (window.backtrack)  // indexed by the chunk's column j
+    {
+      move_row = move_steps_.data() + static_cast<size_t>(r) * window.width + start;
+      stop_row = stop_steps_.data() + static_cast<size_t>(r) * window.width + start;
+    }
+    const float* pm = scratch.prev_move.data();
+    const float* ps = scratch.prev_stop.data();
+    float* cm = scratch.cur_move.data();
+    float* cs = scratch.cur_stop.data();
+    // Columns left of `own` belong to the previous chunk: no step bytes.
+    updateRow(params_, pm, ps, costs, 0, own, cm, cs, nullptr, nullptr);
+    updateRow(params_, pm, ps, costs, own, width, cm, cs, move_row, stop_row);
+    scratch.prev_move.swap(scratch.cur_move);
+    scratch.prev_stop.swap(scratch.cur_stop);
+  }
+  std::copy(scratch.prev_move.begin() + own, scratch.prev_move.end(), final_move_.begin() + begin);
+  std::copy(scratch.prev_stop.begin() + own, scratch.prev_stop.end(), final_stop_.begin() + begin);
+}
+
+SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int count, int rows, bool backtrack,
+                               const int* keyframe_run)
+{
+  SequenceMatch result;
+  Window window;
+  window.rows = std::min(rows, buffer.size());
+  if (window.rows <= 0 || count <= 0)
+    return result;
+  const int num_rows = window.rows;
+  // Older rows only matter where a path ending in [first_end, first_end + count) can have been.
+  window.lo = std::max(0, first_end - (num_rows - 1) * params_.max_step);
+  window.width = first_end + count - window.lo;
+  window.backtrack = backtrack;
+  const int width = window.width;
+  final_move_.resize(width);
+  final_stop_.resize(width);
+  if (backtrack)
+  {
+    move_steps_.resize(static_cast<size_t>(num_rows) * width);
+    stop_steps_.resize(static_cast<size_t>(num_rows) * width);
+  }
+
+  // Two chunks per thread, so a thread slowed by other work does not hold up the rest.
+  const int chunks =
+      width >= kParallelMinWidth ? std::max(1, std::min(2 * cv::getNumThreads(), width / kMinChunkWidth)) : 1;
+  if (static_cast<int>(columns_.size()) < chunks)
+    columns_.resize(chunks);  // only grows: shrinking would free the chunks' buffers
+  const auto run = [&](const cv::Range& range) {
+    for (int c = range.start; c < range.end; ++c)
+      accumulateColumns(buffer, window, static_cast<int>(static_cast<int64_t>(width) * c / chunks),
+                        static_cast<int>(static_cast<int64_t>(width) * (c + 1) / chunks), columns_[c]);
+  };
+  if (chunks > 1)
+    cv::parallel_for_(cv::Range(0, chunks), run, chunks);
+  else
+    run(cv::Range(0, 1));
+
+  const float inf = std::numeric_limits<float>::infinity();
+  const int end_offset = first_end - window.lo;
   const float norm = 1.0f / static_cast<float>(num_rows);
   last_row_.resize(count);
   for (int i = 0; i < count; ++i)
-    last_row_[i] = std::min(prev_move_[end_offset + i], prev_stop_[end_offset + i]) * norm;
+    last_row_[i] = std::min(final_move_[end_offset + i], final_stop_[end_offset + i]) * norm;
   const auto best_it = std::min_element(last_row_.begin(), last_row_.end());
   const int best = static_cast<int>(best_it - last_row_.begin());
   result.keyframe = first_end + best;
@@ -168,10 +276,10 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   {
     result.path.assign(num_rows, 0);
     int j = best + end_offset;
-    bool in_stop = prev_stop_[j] < prev_move_[j];
+    bool in_stop = final_stop_[j] < final_move_[j];
     for (int r = num_rows - 1; r >= 0; --r)
     {
-      result.path[r] = lo + j;
+      result.path[r] = window.lo + j;
       if (r == 0)
         break;
       const unsigned char choice = (in_stop ? stop_steps_ : move_steps_)[static_cast<size_t>(r) * width + j];
