@@ -244,7 +244,14 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
 {
   float* costs = raw_costs_.data() + first;
   float* shifts = shifts_.data() + first;
-  if (census_difference_)
+  if (!query_informative)
+  {
+    // A featureless query's row is neutral whatever the keyframes (below): nothing to compare, and no
+    // shift to report.
+    std::fill(costs, costs + width, 0.0f);
+    std::fill(shifts, shifts + width, 0.0f);
+  }
+  else if (census_difference_)
   {
     censusTransform(query, map_->width(), map_->height(), query_census_.data());
     const size_t bytes = map_->keyframeBytes();
