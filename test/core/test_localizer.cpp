@@ -15,31 +15,17 @@
 #include "along_route_localization/preprocessing.h"
 #include "along_route_localization/route_map.h"
 #include "nordland.h"
+#include "synthetic_route.h"
 
 namespace arl = along_route_localization;
 using arl::LocalizationStatus;
+using synthetic::randomFrame;
+using synthetic::syntheticMap;
 
 namespace
 {
 
 const double kPi = 3.14159265358979323846;
-
-cv::Mat randomFrame(uint64_t seed)
-{
-  cv::Mat frame(32, 64, CV_8UC1);
-  cv::RNG rng(seed);
-  rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
-  return frame;
-}
-
-// A route of `count` random textured keyframes (the content of keyframe k is randomFrame(1000 + k)).
-std::shared_ptr<arl::RouteMap> syntheticMap(int count)
-{
-  auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
-  for (int k = 0; k < count; ++k)
-    map->addKeyframe(randomFrame(1000 + k), 1000000000LL * k);
-  return map;
-}
 
 cv::Mat keyframeCopy(const arl::RouteMap& map, int k)
 {

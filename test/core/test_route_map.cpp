@@ -6,21 +6,10 @@
 #include <opencv2/core.hpp>
 
 #include "along_route_localization/route_map.h"
+#include "synthetic_route.h"
 
 namespace arl = along_route_localization;
-
-namespace
-{
-
-cv::Mat randomFrame(uint64_t seed, int rows = 32, int cols = 64)
-{
-  cv::Mat frame(rows, cols, CV_8UC1);
-  cv::RNG rng(seed);
-  rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
-  return frame;
-}
-
-}  // namespace
+using synthetic::randomFrame;
 
 TEST(RouteMap, KeyframesAreStoredContiguouslyWithStamps)
 {

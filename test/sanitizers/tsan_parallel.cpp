@@ -29,8 +29,11 @@
 #include "along_route_localization/image_difference.h"
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/route_map.h"
+#include "../core/synthetic_route.h"
 
 namespace arl = along_route_localization;
+using synthetic::randomFrame;
+using synthetic::syntheticMap;
 
 namespace
 {
@@ -126,22 +129,6 @@ private:
 thread_local int ThreadPoolBackend::thread_index_ = 0;
 std::atomic<long> ThreadPoolBackend::tasks_on_workers_(0);
 bool g_thread_pool = false;  // main() installed ThreadPoolBackend
-
-cv::Mat randomFrame(uint64_t seed)
-{
-  cv::Mat frame(32, 64, CV_8UC1);
-  cv::RNG rng(seed);
-  rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
-  return frame;
-}
-
-std::shared_ptr<arl::RouteMap> syntheticMap(int count)
-{
-  auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
-  for (int k = 0; k < count; ++k)
-    map->addKeyframe(randomFrame(1000 + k), 1000000000LL * k);
-  return map;
-}
 
 TEST(ParallelSearch, CompareManyEqualsTheSerialSearch)
 {
