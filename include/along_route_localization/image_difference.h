@@ -60,6 +60,10 @@ private:
   bool subpixel_;
 };
 
+/// 2x2 box average, rounded to nearest: half has (width / 2) x (height / 2) pixels, an odd last column or
+/// row is dropped. The coarse global search (Localizer, coarse_search_keyframes) compares these images.
+void halveImage(const uint8_t* image, int width, int height, uint8_t* half);
+
 /// 3x3 census transform: bit b of the output is set when neighbour b is darker than the centre
 /// (neighbours in row-major order, centre skipped). Border pixels compare against replicated edges.
 void censusTransform(const uint8_t* image, int width, int height, uint8_t* codes);

@@ -72,6 +72,11 @@ struct LocalizerParams
   /// featureless keyframes do not look similar to every query.
   bool energy_normalized_cost = true;
   int search_radius = 40;             ///< keyframes computed on each side of the predicted match while tracking
+  /// On maps of at least this many keyframes (0: never) a global search compares 2x2-averaged images
+  /// (halveImage) with a shift range of ceil(m / 2): a quarter of the bytes and about half the shifts. The
+  /// answer's reported shift is still measured at full resolution; tracking always is. On the 1788-frame
+  /// Nordland route the coarse rows gave the same accuracy (README, Performance).
+  int coarse_search_keyframes = 4096;
   DtwParams dtw = localizerDtwDefaults();  ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
   int min_init_frames = 5;            ///< frames before the first global answer
@@ -137,6 +142,8 @@ public:
   /// Median mean absolute byte difference between consecutive keyframes, and the stationary threshold.
   float medianKeyframeChange() const { return median_keyframe_change_; }
   float stationaryChange() const { return stationary_change_; }
+  /// Whether global searches compare halved images on this map (coarse_search_keyframes).
+  bool coarseGlobalSearch() const { return coarse_difference_ != nullptr; }
 
   /// The paper's figure 4: ring buffer (rows = frames, newest at the bottom; columns = keyframes of
   /// [first, first + width)) as a gray image, dark = low cost, with the current path in red. BGR8.
@@ -146,13 +153,17 @@ private:
   void rebuildComparators();
   /// First image row compared: below the sky rows, leaving at least one row.
   int firstComparedRow() const;
-  void computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query, int first,
-                  int width);
+  /// Appends the eq. 2 row of keyframes [first, first + width); `global`: a global search (coarse on big maps).
+  void computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query, bool global,
+                  int first, int width);
 
   std::shared_ptr<const RouteMap> map_;
   LocalizerParams params_;
   std::unique_ptr<ImageDifference> difference_;
   std::unique_ptr<CensusDifference> census_difference_;
+  std::unique_ptr<ImageDifference> coarse_difference_;  // global search on halved images (or none)
+  std::vector<uint8_t> coarse_keyframes_;              // halveImage of every keyframe, contiguous
+  std::vector<uint8_t> coarse_query_;
   std::vector<uint8_t> keyframe_census_;   // census codes of all keyframes, when that cost is used
   std::vector<uint8_t> query_census_;
   std::vector<uint8_t> keyframe_informative_;

@@ -221,6 +221,45 @@ __attribute__((target("avx512bw"))) void sadsAvx512(const uint8_t* query, const 
   }
 }
 
+/// The same for narrow images (width + strip <= 64 bytes, e.g. the 32x16 images of the coarse global
+/// search): one register holds the strips of two consecutive rows (lanes [0, strip) and
+/// [width, width + strip)), so each row pair costs one load and psadbw per shift. All loads are masked.
+template <int kShifts>
+__attribute__((target("avx512bw"))) void sadsAvx512TwoRows(const uint8_t* query, const uint8_t* keyframe, int width,
+                                                           int first_row, int height, int max_shift, int columns,
+                                                           int first_shift, int count, uint32_t* sums,
+                                                           const uint8_t* next)
+{
+  const __mmask64 one_row = (static_cast<__mmask64>(1) << columns) - 1;
+  const __mmask64 two_rows = one_row | (one_row << width);
+  const size_t first = static_cast<size_t>(first_row) * width + max_shift;
+  for (int done = 0; done < count; done += kShifts)
+  {
+    const int start = std::min(done, count - kShifts);  // a last, partial pass overlaps the previous one
+    __m512i acc[kShifts];
+    for (int i = 0; i < kShifts; ++i)
+      acc[i] = _mm512_setzero_si512();
+    const uint8_t* q = query + first;
+    const uint8_t* k = keyframe + first - (first_shift + start);
+    const uint8_t* n = next + first;
+    int y = first_row;
+    for (; y + 1 < height; y += 2, q += 2 * width, k += 2 * width, n += 2 * width)
+      addRowSadsAvx512<kShifts, true>(q, k, n, two_rows, acc);
+    if (y < height)
+      addRowSadsAvx512<kShifts, true>(q, k, n, one_row, acc);
+    alignas(64) uint64_t lane[kShifts][8];
+    for (int i = 0; i < kShifts; ++i)
+      _mm512_store_si512(lane[i], acc[i]);
+    for (int i = 0; i < kShifts; ++i)
+    {
+      uint64_t total = 0;
+      for (int l = 0; l < 8; ++l)
+        total += lane[i][l];
+      sums[start + i] = static_cast<uint32_t>(total);
+    }
+  }
+}
+
 bool hasAvx512bw()
 {
   static const bool supported = __builtin_cpu_supports("avx512bw");
@@ -246,8 +285,19 @@ struct Strip
     if (strip <= 64 && hasAvx512bw())
     {
       next = next ? next : keyframe;  // prefetches of the rows being read: no branch in the kernel
-      if (count >= 9)  // 2m + 1 with the default m = 4
+      if (width + strip <= 64 && count >= 5)
+      {
+        if (count >= 9)
+          sadsAvx512TwoRows<9>(query, keyframe, width, first_row, height, max_shift, strip, first_shift, count, sums,
+                               next);
+        else
+          sadsAvx512TwoRows<5>(query, keyframe, width, first_row, height, max_shift, strip, first_shift, count, sums,
+                               next);
+      }
+      else if (count >= 9)  // 2m + 1 with the default m = 4
         sadsAvx512<9>(query, keyframe, width, first_row, height, max_shift, strip, first_shift, count, sums, next);
+      else if (count >= 5)  // 2m + 1 with m = 2 (the coarse global search)
+        sadsAvx512<5>(query, keyframe, width, first_row, height, max_shift, strip, first_shift, count, sums, next);
       else
         sadsAvx512<1>(query, keyframe, width, first_row, height, max_shift, strip, first_shift, count, sums, next);
       return;
@@ -443,6 +493,19 @@ ShiftedDifference CensusDifference::compare(const uint8_t* query, const uint8_t*
     cost[i] = sum;
   }
   return pickBestShift(cost, m, geometry_.comparedPixels(), geometry_.subpixel());
+}
+
+void halveImage(const uint8_t* image, int width, int height, uint8_t* half)
+{
+  const int half_width = width / 2, half_height = height / 2;
+  for (int y = 0; y < half_height; ++y)
+  {
+    const uint8_t* top = image + static_cast<size_t>(2 * y) * width;
+    const uint8_t* bottom = top + width;
+    uint8_t* out = half + static_cast<size_t>(y) * half_width;
+    for (int x = 0; x < half_width; ++x)
+      out[x] = static_cast<uint8_t>((top[2 * x] + top[2 * x + 1] + bottom[2 * x] + bottom[2 * x + 1] + 2) / 4);
+  }
 }
 
 float textureEnergy(const uint8_t* image, int width, int height, int first_row)

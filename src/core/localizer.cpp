@@ -59,6 +59,8 @@ std::string LocalizerParams::validate() const
     e << "min_texture_ratio must be in [0, 4], got " << min_texture_ratio;
   else if (!(stationary_ratio >= 0.0f && stationary_ratio <= 1.0f))
     e << "stationary_ratio must be in [0, 1], got " << stationary_ratio;
+  else if (coarse_search_keyframes < 0)
+    e << "coarse_search_keyframes must be >= 0 (0: never), got " << coarse_search_keyframes;
   else if (search_radius < 1)
     e << "search_radius must be >= 1 keyframe, got " << search_radius;
   else if (dtw.max_step < 1 || dtw.max_step > 16)
@@ -113,6 +115,20 @@ float meanAbsoluteDifference(const uint8_t* a, const uint8_t* b, int width, int 
   return static_cast<float>(static_cast<double>(sum) / (static_cast<double>(rows) * width));
 }
 
+/// f(k) for every keyframe k, split across cores for big maps (set-up work done once per map).
+template <typename F>
+void forEachKeyframe(size_t count, bool parallel, const F& f)
+{
+  const auto run = [&](const cv::Range& range) {
+    for (int k = range.start; k < range.end; ++k)
+      f(k);
+  };
+  if (parallel && count >= 4096)
+    cv::parallel_for_(cv::Range(0, static_cast<int>(count)), run, std::max(1.0, count / 1024.0));
+  else
+    run(cv::Range(0, static_cast<int>(count)));
+}
+
 float median(std::vector<float> values)
 {
   if (values.empty())
@@ -142,9 +158,11 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
   median_energy_ = median(values);
   const int sky = firstComparedRow();
   keyframe_change_.assign(map_->size(), 0.0f);
-  for (size_t k = 1; k < map_->size(); ++k)
-    keyframe_change_[k] =
-        meanAbsoluteDifference(map_->keyframe(k - 1), map_->keyframe(k), map_->width(), map_->height(), sky);
+  forEachKeyframe(map_->size(), params.parallel, [&](int k) {
+    if (k > 0)
+      keyframe_change_[k] =
+          meanAbsoluteDifference(map_->keyframe(k - 1), map_->keyframe(k), map_->width(), map_->height(), sky);
+  });
   median_keyframe_change_ = median(std::vector<float>(keyframe_change_.begin() + 1, keyframe_change_.end()));
   setParams(params);
   const size_t n = map_->size();
@@ -162,7 +180,8 @@ void Localizer::setParams(const LocalizerParams& params)
     throw std::invalid_argument("invalid localizer parameters: " + invalid);
   const bool comparators_changed = !difference_ || params.max_shift_px != params_.max_shift_px ||
                                    params.subpixel_shift != params_.subpixel_shift ||
-                                   params.cost_function != params_.cost_function;
+                                   params.cost_function != params_.cost_function ||
+                                   params.coarse_search_keyframes != params_.coarse_search_keyframes;
   params_ = params;
   dtw_.setParams(params_.dtw);
   confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
@@ -225,6 +244,21 @@ void Localizer::rebuildComparators()
       censusTransform(map_->keyframe(k), w, h, keyframe_census_.data() + k * map_->keyframeBytes());
     query_census_.resize(map_->keyframeBytes());
   }
+  coarse_difference_.reset();
+  coarse_keyframes_.clear();
+  const int coarse_shift = (params_.max_shift_px + 1) / 2;
+  if (params_.cost_function == CostFunction::kSad && params_.coarse_search_keyframes > 0 &&
+      static_cast<int>(map_->size()) >= params_.coarse_search_keyframes && w / 2 > 2 * coarse_shift &&
+      first_row / 2 < h / 2)
+  {
+    // Integer shifts: a coarse row's shifts are not reported (process() measures the answer's at full size).
+    coarse_difference_.reset(new ImageDifference(w / 2, h / 2, first_row / 2, coarse_shift, false));
+    const size_t coarse_bytes = static_cast<size_t>(w / 2) * (h / 2);
+    coarse_keyframes_.resize(map_->size() * coarse_bytes);
+    forEachKeyframe(map_->size(), params_.parallel,
+                    [&](int k) { halveImage(map_->keyframe(k), w, h, coarse_keyframes_.data() + k * coarse_bytes); });
+    coarse_query_.resize(coarse_bytes);
+  }
 }
 
 void Localizer::reset()
@@ -240,7 +274,7 @@ void Localizer::reset()
 }
 
 void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query,
-                           int first, int width)
+                           bool global, int first, int width)
 {
   float* costs = raw_costs_.data() + first;
   float* shifts = shifts_.data() + first;
@@ -268,6 +302,13 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
       cv::parallel_for_(cv::Range(0, width), run, std::max(1.0, width / 256.0));
     else
       run(cv::Range(0, width));
+  }
+  else if (coarse_difference_ && global)
+  {
+    // Global search on a big map: halved images (coarse_search_keyframes).
+    halveImage(query, map_->width(), map_->height(), coarse_query_.data());
+    coarse_difference_->compareMany(coarse_query_.data(), coarse_keyframes_.data(), width, costs, shifts,
+                                    params_.parallel);
   }
   else
   {
@@ -328,7 +369,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
     first = std::max(0, predicted - params_.search_radius);
     width = std::min(n, predicted + params_.search_radius + 1) - first;
   }
-  computeRow(query, query_energy, result.query_informative, repeated_query, first, width);
+  computeRow(query, query_energy, result.query_informative, repeated_query, global, first, width);
   cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
 
   SequenceMatch match;
@@ -389,6 +430,8 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
     result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
     if (result.keyframe >= newest_first_ && result.keyframe < newest_first_ + newest_width_)
       result.shift_px = shifts_[result.keyframe];
+    if (global && coarse_difference_ && result.query_informative)
+      result.shift_px = difference_->compare(query, map_->keyframe(result.keyframe)).shift_px;  // full resolution
     result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
   }
   return result;

@@ -1,5 +1,6 @@
 // Step 2 (image_difference.h): SAD with a horizontal shift search, sub-pixel refinement, census cost,
 // texture energy, and a known shift recovered from a real Nordland frame.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -157,6 +158,50 @@ TEST(ImageDifference, CompareManyEqualsCompareForEveryKeyframe)
       EXPECT_NEAR(1.0f, shifts[20], 0.5f);
     }
   }
+}
+
+TEST(ImageDifference, SadOfNarrowImagesEqualsPlainLoops)
+{
+  // Narrow images (two strip rows fit one 64-byte register: the coarse global search's 32x16) take
+  // another kernel; odd heights leave a single last row, odd first rows start mid-pair. Every shift's
+  // SAD must equal the plain loop's.
+  const struct
+  {
+    int width, height, first_row, max_shift;
+  } cases[] = { { 32, 16, 1, 2 }, { 32, 15, 0, 2 }, { 32, 16, 3, 4 }, { 24, 9, 2, 3 }, { 20, 7, 0, 1 }, { 33, 16, 1, 2 } };
+  for (const auto& c : cases)
+  {
+    const std::vector<uint8_t> query = randomBytes(static_cast<size_t>(c.width) * c.height, 21);
+    const std::vector<uint8_t> keyframe = randomBytes(static_cast<size_t>(c.width) * c.height, 22);
+    const arl::ImageDifference difference(c.width, c.height, c.first_row, c.max_shift, false);
+    uint32_t best = UINT32_MAX;
+    for (int d = -c.max_shift; d <= c.max_shift; ++d)
+    {
+      uint32_t expected = 0;
+      for (int y = c.first_row; y < c.height; ++y)
+        for (int x = c.max_shift; x < c.width - c.max_shift; ++x)
+          expected += static_cast<uint32_t>(
+              std::abs(query[y * c.width + x] - keyframe[y * c.width + x - d]));
+      EXPECT_EQ(expected, difference.sadAtShift(query.data(), keyframe.data(), d))
+          << c.width << "x" << c.height << " first row " << c.first_row << " m " << c.max_shift << " d " << d;
+      best = std::min(best, expected);
+    }
+    EXPECT_FLOAT_EQ(static_cast<float>(best) / difference.comparedPixels(),
+                    difference.compare(query.data(), keyframe.data()).cost);
+  }
+}
+
+TEST(ImageDifference, HalveImageAveragesTwoByTwoBlocksByHand)
+{
+  // 5 x 3 -> 2 x 1: the odd last column and row are dropped.
+  // block (0,0): 10 + 20 + 30 + 41 = 101 -> (101 + 2) / 4 = 25; block (0,1): 0 + 1 + 255 + 255 = 511 -> 128
+  const uint8_t image[15] = { 10, 20, 0,   1,   99,  //
+                              30, 41, 255, 255, 99,  //
+                              99, 99, 99,  99,  99 };
+  uint8_t half[2] = { 7, 7 };
+  arl::halveImage(image, 5, 3, half);
+  EXPECT_EQ(25, half[0]);
+  EXPECT_EQ(128, half[1]);
 }
 
 TEST(ImageDifference, RandomPairCostIsTheMeanAbsoluteDifference)

@@ -138,7 +138,7 @@ TEST(Localizer, RejectsEmptyMapInvalidParamsAndBadFrames)
 TEST(LocalizerParams, ValidateNamesInvalidValues)
 {
   EXPECT_EQ("", arl::LocalizerParams().validate());
-  std::vector<arl::LocalizerParams> invalid(7);
+  std::vector<arl::LocalizerParams> invalid(8);
   invalid[0].ring_buffer_rows = 0;
   invalid[1].max_shift_px = -1;
   invalid[2].dtw.max_step = 0;
@@ -146,6 +146,7 @@ TEST(LocalizerParams, ValidateNamesInvalidValues)
   invalid[4].horizontal_fov_rad = 3.5;  // >= pi
   invalid[5].confidence_threshold = 1.5;  // a confidence lives in [0, 1]
   invalid[6].contrast_window = -1;
+  invalid[7].coarse_search_keyframes = -1;
   for (size_t i = 0; i < invalid.size(); ++i)
     EXPECT_NE("", invalid[i].validate()) << "case " << i;
 
@@ -218,6 +219,40 @@ TEST(Localizer, ReportsShiftAndHomingAngleOfAShiftedQuery)
   EXPECT_NEAR(2.0, result.shift_px, 0.5);
   EXPECT_NEAR(arl::homingAngleFromShift(result.shift_px, 64, 1.0), result.homing_angle_rad, 1e-9);
   EXPECT_NEAR(-0.03413, result.homing_angle_rad, 0.01);
+}
+
+TEST(Localizer, CoarseGlobalSearchAnswersWithTheFullResolutionShift)
+{
+  // Global search on halved images, forced with coarse_search_keyframes = 1. Queries are keyframes
+  // 20.. shifted right by 3 px: an odd shift, which the halved images (2 px per coarse px) cannot
+  // express, so the +3 reported on the global answers comes from the full-size comparison.
+  const auto map = syntheticMap(60);
+  arl::LocalizerParams params;
+  params.coarse_search_keyframes = 1;
+  arl::Localizer localizer(map, params);
+  ASSERT_TRUE(localizer.coarseGlobalSearch());
+  int global_answers = 0;
+  for (int i = 0; i < 12; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(shiftedRight(keyframeCopy(*map, 20 + i), 3));
+    if (i < params.min_init_frames - 1)
+      continue;  // no answer yet
+    EXPECT_EQ(20 + i, result.keyframe) << "frame " << i;
+    EXPECT_NEAR(3.0, result.shift_px, 0.25) << "frame " << i << " " << arl::toString(result.status);
+    global_answers += result.status == LocalizationStatus::kInitializing ? 1 : 0;
+  }
+  EXPECT_EQ(params.init_confirm_frames - 1, global_answers);  // answered by the global search, then tracking
+
+  // Below the threshold, and for the census cost, the global search stays full size.
+  params.coarse_search_keyframes = 61;
+  EXPECT_FALSE(arl::Localizer(map, params).coarseGlobalSearch());
+  params.coarse_search_keyframes = 60;
+  EXPECT_TRUE(arl::Localizer(map, params).coarseGlobalSearch());
+  params.cost_function = arl::CostFunction::kCensus;
+  EXPECT_FALSE(arl::Localizer(map, params).coarseGlobalSearch());
+  params.cost_function = arl::CostFunction::kSad;
+  params.coarse_search_keyframes = 0;
+  EXPECT_FALSE(arl::Localizer(map, params).coarseGlobalSearch());
 }
 
 TEST(Localizer, SetParamsWithAnotherRingBufferSizeKeepsTracking)
@@ -550,9 +585,10 @@ struct LostAndFound
   }
 };
 
-LostAndFound runQueries(const std::vector<QueryFrame>& queries)
+LostAndFound runQueries(const std::vector<QueryFrame>& queries,
+                        const arl::LocalizerParams& params = arl::LocalizerParams())
 {
-  arl::Localizer localizer(summerStretchMap(), arl::LocalizerParams());
+  arl::Localizer localizer(summerStretchMap(), params);
   LostAndFound out;
   for (const QueryFrame& q : queries)
   {
@@ -585,6 +621,27 @@ TEST(Localizer, StartsMidRouteAndLocalizesGlobally)
   const int frames = run.framesToRelocalize(0);
   std::printf("mid-route start: right after %d frames\n", frames);
   EXPECT_LE(frames, 10);  // measured 8: min_init_frames - 1 = 4 frames to the first answer, 4 to confirm it
+}
+
+TEST(Localizer, CoarseGlobalSearchStartsMidRouteLikeTheFullSizeOne)
+{
+  SKIP_WITHOUT_NORDLAND();
+  // The same mid-route start with the global search on halved images (forced on this 300-keyframe map).
+  arl::LocalizerParams params;
+  params.coarse_search_keyframes = 1;
+  arl::Localizer probe(summerStretchMap(), params);
+  ASSERT_TRUE(probe.coarseGlobalSearch());
+  std::vector<QueryFrame> queries;
+  appendStretch(&queries, 150, 100);
+  const LostAndFound full = runQueries(queries);
+  const LostAndFound coarse = runQueries(queries, params);
+  const int frames = coarse.framesToRelocalize(0);
+  std::printf("mid-route start, coarse global search: right after %d frames\n", frames);
+  EXPECT_LE(frames, 10);  // measured 8, as with the full-size search
+  EXPECT_EQ(full.framesToRelocalize(0), frames);
+  const long full_wrong = std::count(full.marks.begin(), full.marks.end(), 'x');
+  const long coarse_wrong = std::count(coarse.marks.begin(), coarse.marks.end(), 'x');
+  EXPECT_LE(std::abs(coarse_wrong - full_wrong), 3);  // measured 15 and 15 (a look-alike stretch, keyframes 175-190)
 }
 
 TEST(Localizer, KidnappedRelocalizes)
