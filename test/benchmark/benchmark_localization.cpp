@@ -485,12 +485,14 @@ BENCHMARK(BM_LocalizerTracking)->Apply(mapSizeArgs)->UseRealTime()->Unit(benchma
 
 // Global relocalization: a localizer that never leaves the initializing state, so every frame
 // computes the whole-map row (parallel compareMany), contrast enhancement and the whole-map DTW.
+// coarse = 1: on halved images (coarse_search_keyframes = 1), 0: full size.
 void BM_GlobalRelocalization(benchmark::State& state)
 {
   const int n = static_cast<int>(state.range(0));
   const auto map = routeMap(n);
   arl::LocalizerParams params = benchmarkLocalizerParams();
   params.min_init_frames = INT_MAX;
+  params.coarse_search_keyframes = state.range(1) ? 1 : 0;
   arl::Localizer localizer(map, params);
   QueryStream stream(kStartKeyframe);
   QueryBlock block;
@@ -512,7 +514,14 @@ void BM_GlobalRelocalization(benchmark::State& state)
   state.counters["frames_without_answer"] = wrong;
   state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(map->keyframeBytes()) * n);
 }
-BENCHMARK(BM_GlobalRelocalization)->Apply(mapSizeArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
+void mapSizeCoarseArgs(benchmark::internal::Benchmark* b)
+{
+  b->ArgNames({ "keyframes", "coarse" });
+  for (int n : kMapSizes)
+    for (int coarse : { 0, 1 })
+      b->Args({ n, coarse });
+}
+BENCHMARK(BM_GlobalRelocalization)->Apply(mapSizeCoarseArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
 
 // ------------------------------------------------------------------------------------------------
 // The real route: every winter query of the Nordland frames against the 1788 summer keyframes, frame
