@@ -1,6 +1,6 @@
 // localize_offline: runs the localizer's core code path over recorded data, as fast as the machine allows.
 //   localize_offline --map PATH --query PATH --output results.csv [--params params.yaml]
-//                    [--method dtw|seqslam] [--topic TOPIC]
+//                    [--method dtw|seqslam] [--topic TOPIC] [--save-map MAP_FILE]
 // PATH: a folder of images (file-name order; every map image is a keyframe), a bag with an image topic,
 // or a map file written by the map recorder.
 #include <unistd.h>
@@ -21,6 +21,7 @@
 #include "along_route_localization/preprocessing.h"
 #include "along_route_localization/route_map.h"
 #include "ros/frame_source.h"
+#include "ros/map_io.h"
 
 namespace alr = along_route_localization;
 
@@ -37,9 +38,12 @@ double secondsSince(Clock::time_point start)
 void usage(std::ostream& out)
 {
   out << "usage: localize_offline --map PATH --query PATH --output results.csv [--params params.yaml]\n"
-         "                        [--method dtw|seqslam] [--topic TOPIC] [--set name=value ...] [--quiet]\n"
+         "                        [--method dtw|seqslam] [--topic TOPIC] [--set name=value ...]\n"
+         "                        [--save-map MAP_FILE] [--quiet]\n"
          "  PATH: a folder of images (sorted by file name), a bag with an image topic, or a map file\n"
          "        written by the map recorder (its stored preprocessing parameters are used).\n"
+         "  --save-map: also write the loaded map as a map file (the recorder's format: for the localizer\n"
+         "        nodelet, or a later --map that skips decoding and preprocessing the images).\n"
          "  --params: flat YAML 'name: value' file; --set overrides one parameter. Names:\n   ";
   for (const std::string& name : alr::parameterNames())
     out << " " << name;
@@ -72,7 +76,7 @@ private:
 
 int main(int argc, char** argv)
 {
-  std::string map_path, query_path, output_path, params_path, method, topic;
+  std::string map_path, query_path, output_path, params_path, method, topic, save_map_path;
   std::vector<std::pair<std::string, std::string>> overrides;
   bool quiet = false;
   for (int i = 1; i < argc; ++i)
@@ -98,6 +102,8 @@ int main(int argc, char** argv)
       method = value();
     else if (arg == "--topic")
       topic = value();
+    else if (arg == "--save-map")
+      save_map_path = value();
     else if (arg == "--set")
     {
       const std::string kv = value();
@@ -171,6 +177,20 @@ int main(int argc, char** argv)
     return 1;
   }
   const double load_seconds = secondsSince(start);
+  if (!save_map_path.empty())
+  {
+    try
+    {
+      alr::writeMap(save_map_path, *map);
+    }
+    catch (const std::exception& e)
+    {
+      std::cerr << "localize_offline: --save-map: " << e.what() << "\n";
+      return 1;
+    }
+    if (!quiet)
+      std::cerr << "localize_offline: wrote the map (" << map->size() << " keyframes) to " << save_map_path << "\n";
+  }
 
   std::ofstream out(output_path);
   if (!out)

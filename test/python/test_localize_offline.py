@@ -76,6 +76,23 @@ class LocalizeOfflineTest(unittest.TestCase):
         for r in rows:
             self.assertTrue(0.0 <= float(r['confidence']) <= 1.0)
 
+    def test_saved_map_gives_the_same_results_as_its_images(self):
+        # --save-map writes the loaded map in the recorder's format; run again on that file, every row
+        # must be the same as with the folder of images (the file holds the preprocessed keyframes).
+        map_file = os.path.join(self.tmp, 'saved.map')
+        from_images = os.path.join(self.tmp, 'from_images.csv')
+        from_file = os.path.join(self.tmp, 'from_file.csv')
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', from_images,
+                                 '--save-map', map_file)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertGreater(os.path.getsize(map_file), 40 * 64 * 32)
+        result = self.run_runner('--map', map_file, '--query', self.map_dir, '--output', from_file)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        with open(from_images) as a, open(from_file) as b:
+            self.assertEqual(a.read(), b.read())
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', from_file,
+                                         '--save-map', '/no/such/dir/saved.map'), '--save-map', '/no/such/dir')
+
     def assertFails(self, result, *fragments):
         self.assertNotEqual(result.returncode, 0)
         self.assertGreater(result.returncode, 0, 'killed by a signal: %s' % result.stderr)
