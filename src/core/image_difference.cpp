@@ -1,6 +1,7 @@
 #include "along_route_localization/image_difference.h"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -8,6 +9,7 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/core/hal/intrin.hpp>
+#include <opencv2/imgproc.hpp>
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -506,6 +508,24 @@ void halveImage(const uint8_t* image, int width, int height, uint8_t* half)
     for (int x = 0; x < half_width; ++x)
       out[x] = static_cast<uint8_t>((top[2 * x] + top[2 * x + 1] + bottom[2 * x] + bottom[2 * x + 1] + 2) / 4);
   }
+}
+
+void halveImages(const uint8_t* images, size_t count, int width, int height, uint8_t* halves)
+{
+  if (count == 0)
+    return;
+  if (width % 2 == 0 && height % 2 == 0 && count * height <= static_cast<size_t>(INT_MAX))
+  {
+    // For even sizes INTER_AREA at exactly half size is the rounded 2x2 mean, and no 2x2 block of the
+    // stack straddles two images.
+    const cv::Mat stack(static_cast<int>(count * height), width, CV_8UC1, const_cast<uint8_t*>(images));
+    cv::Mat out(static_cast<int>(count * height / 2), width / 2, CV_8UC1, halves);
+    cv::resize(stack, out, out.size(), 0.0, 0.0, cv::INTER_AREA);
+    return;
+  }
+  const size_t bytes = static_cast<size_t>(width) * height, half_bytes = static_cast<size_t>(width / 2) * (height / 2);
+  for (size_t i = 0; i < count; ++i)
+    halveImage(images + i * bytes, width, height, halves + i * half_bytes);
 }
 
 float textureEnergy(const uint8_t* image, int width, int height, int first_row)

@@ -255,8 +255,7 @@ void Localizer::rebuildComparators()
     coarse_difference_.reset(new ImageDifference(w / 2, h / 2, first_row / 2, coarse_shift, false));
     const size_t coarse_bytes = static_cast<size_t>(w / 2) * (h / 2);
     coarse_keyframes_.resize(map_->size() * coarse_bytes);
-    forEachKeyframe(map_->size(), params_.parallel,
-                    [&](int k) { halveImage(map_->keyframe(k), w, h, coarse_keyframes_.data() + k * coarse_bytes); });
+    halveImages(map_->keyframe(0), map_->size(), w, h, coarse_keyframes_.data());
     coarse_query_.resize(coarse_bytes);
   }
 }

@@ -204,6 +204,26 @@ TEST(ImageDifference, HalveImageAveragesTwoByTwoBlocksByHand)
   EXPECT_EQ(128, half[1]);
 }
 
+TEST(ImageDifference, HalveImagesEqualsHalveImageOnEachImage)
+{
+  // Even sizes go through one cv::resize over the stack, odd ones through the loop: the bytes must be
+  // halveImage's either way.
+  for (const auto& size : { std::make_pair(64, 32), std::make_pair(32, 16), std::make_pair(33, 15) })
+  {
+    const int width = size.first, height = size.second, count = 37;
+    const size_t bytes = static_cast<size_t>(width) * height, half_bytes = static_cast<size_t>(width / 2) * (height / 2);
+    const std::vector<uint8_t> images = randomBytes(bytes * count, 31);
+    std::vector<uint8_t> stacked(half_bytes * count, 1), single(half_bytes);
+    arl::halveImages(images.data(), count, width, height, stacked.data());
+    for (int i = 0; i < count; ++i)
+    {
+      arl::halveImage(images.data() + i * bytes, width, height, single.data());
+      EXPECT_TRUE(std::equal(single.begin(), single.end(), stacked.begin() + i * half_bytes))
+          << width << "x" << height << " image " << i;
+    }
+  }
+}
+
 TEST(ImageDifference, RandomPairCostIsTheMeanAbsoluteDifference)
 {
   // Independent plain loop: cost = min_d SAD(d) / ((h - first_row) * (w - 2m)).
