@@ -120,8 +120,20 @@ if build_ws "$ws_tsan" "$tsan_flags" test_core test_map_io along_route_localizat
   lib="$ws_tsan/devel/lib"
   bin="$lib/along_route_localization"
   # The core and the package's own libraries, ThreadSanitizer-built: a gtest driver per threaded part.
+  # tsan_parallel plugs a std::thread backend into cv::parallel_for_ (cv::parallel::ParallelForAPI,
+  # OpenCV >= 4.5.2; Noetic's 4.2 has none, and its TBB / pthreads pool is not instrumented).
+  drivers=(tsan_map_recorder)
+  parallel_driver=false
+  if pkg-config --atleast-version=4.5.2 opencv4; then
+    drivers=(tsan_parallel tsan_map_recorder)
+    parallel_driver=true
+  else
+    echo "  SKIP tsan parallel search: OpenCV $(pkg-config --modversion opencv4) has no pluggable parallel_for_" \
+         "backend (needs 4.5.2); the parallel search still runs under TSan in test_core"
+    skipped+=("tsan parallel search (OpenCV < 4.5.2)")
+  fi
   drivers_ok=true
-  for driver in tsan_parallel tsan_map_recorder; do
+  for driver in "${drivers[@]}"; do
     # shellcheck disable=SC2046
     g++ -std=c++14 -O2 -g -Wall -Wextra $tsan_flags -I"$here/include" -I"$here/src" \
       "${ros_cflags[@]+"${ros_cflags[@]}"}" $(pkg-config --cflags opencv4) \
@@ -136,7 +148,9 @@ if build_ws "$ws_tsan" "$tsan_flags" test_core test_map_io along_route_localizat
   run_check "tsan test_core" "$ws_tsan/test_core.log" "$bin/test_core"
   run_check "tsan test_map_io" "$ws_tsan/test_map_io.log" "$bin/test_map_io"
   if [ "$drivers_ok" = true ]; then
-    run_check "tsan parallel search" "$ws_tsan/tsan_parallel.log" "$ws_tsan/tsan_parallel"
+    if [ "$parallel_driver" = true ]; then
+      run_check "tsan parallel search" "$ws_tsan/tsan_parallel.log" "$ws_tsan/tsan_parallel"
+    fi
     # The nodelet runs inside ROS's libraries, which are not instrumented: their boost::shared_ptr counts
     # and mutexes are partly handled in code ThreadSanitizer does not see. Data races stay reported (with
     # the ROS-internal ones in tsan_ros.supp); lock-order and mutex-misuse reports are off for this driver.
@@ -167,9 +181,14 @@ have_clang=true
 fuzzer_runtime() { clang++ -print-file-name=libclang_rt.fuzzer-x86_64.a 2>/dev/null; }
 if ! command -v clang++ >/dev/null 2>&1 || [ ! -f "$(fuzzer_runtime)" ]; then
   if [ "$(id -u)" -eq 0 ]; then
-    echo "  installing clang and libclang-rt-14-dev (libFuzzer)"
+    # Debian 12 ships libFuzzer in libclang-rt-14-dev; Ubuntu 20.04's clang (10) has it in its own packages.
+    clang_packages=(clang)
+    if apt-cache show libclang-rt-14-dev >/dev/null 2>&1; then
+      clang_packages+=(libclang-rt-14-dev)
+    fi
+    echo "  installing ${clang_packages[*]} (libFuzzer)"
     { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
-        clang libclang-rt-14-dev; } >"$workdir/apt.log" 2>&1 || { tail -n 20 "$workdir/apt.log"; have_clang=false; }
+        "${clang_packages[@]}"; } >"$workdir/apt.log" 2>&1 || { tail -n 20 "$workdir/apt.log"; have_clang=false; }
   else
     have_clang=false
   fi
