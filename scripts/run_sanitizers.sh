@@ -129,7 +129,7 @@ if build_ws "$ws_tsan" "$tsan_flags" test_core test_map_io along_route_localizat
     parallel_driver=true
   else
     echo "  SKIP tsan parallel search: OpenCV $(pkg-config --modversion opencv4) has no pluggable parallel_for_" \
-         "backend (needs 4.5.2); the parallel search still runs under TSan in test_core"
+         "backend (needs 4.5.2); test_core still runs the parallel search, on OpenCV's own uninstrumented pool"
     skipped+=("tsan parallel search (OpenCV < 4.5.2)")
   fi
   drivers_ok=true
