@@ -236,7 +236,8 @@ struct Connection
 class MapContents
 {
 public:
-  explicit MapContents(const std::string& path) : path_(path) {}
+  /// file_bytes: the map file's size, an upper bound of the keyframe bytes it holds.
+  MapContents(const std::string& path, uint64_t file_bytes) : path_(path), file_bytes_(file_bytes) {}
 
   void connection(const Record& record)
   {
@@ -319,6 +320,9 @@ private:
     params_.reset(new PreprocessingParams(params));
     params_text_ = text;
     map_ = RouteMap(params);
+    // Room for every keyframe the file can hold (each takes more file bytes than keyframe bytes): no
+    // reallocation and copy of the growing map while it is read (most of the reading time of a big map).
+    map_.reserve(static_cast<size_t>(file_bytes_ / std::max<size_t>(1, map_.keyframeBytes())));
     for (const Keyframe& keyframe : early_keyframes_)
       add(keyframe);
     early_keyframes_.clear();
@@ -346,22 +350,25 @@ private:
 
   void add(const Keyframe& keyframe)
   {
-    const std::string where = "map file " + inQuotes(path_) + ": keyframe " + std::to_string(map_.size());
+    const auto where = [&]() {
+      return "map file " + inQuotes(path_) + ": keyframe " + std::to_string(map_.size());
+    };
     if (!isMono8(keyframe.encoding))
-      throw MapError(where + " has encoding '" + keyframe.encoding + "', expected mono8");
+      throw MapError(where() + " has encoding '" + keyframe.encoding + "', expected mono8");
     if (static_cast<int>(keyframe.width) != map_.width() || static_cast<int>(keyframe.height) != map_.height())
-      throw MapError(where + " is " + std::to_string(keyframe.width) + "x" + std::to_string(keyframe.height) +
+      throw MapError(where() + " is " + std::to_string(keyframe.width) + "x" + std::to_string(keyframe.height) +
                      " px, but the map's preprocessing makes " + std::to_string(map_.width()) + "x" +
                      std::to_string(map_.height()) + " px (inconsistent keyframe sizes)");
     if (keyframe.step < keyframe.width ||
         keyframe.data.size() < static_cast<uint64_t>(keyframe.step) * keyframe.height)
-      throw MapError(where + " is truncated: " + std::to_string(keyframe.data.size()) + " bytes for " +
+      throw MapError(where() + " is truncated: " + std::to_string(keyframe.data.size()) + " bytes for " +
                      std::to_string(keyframe.height) + " rows of step " + std::to_string(keyframe.step));
     const cv::Mat view(map_.height(), map_.width(), CV_8UC1, const_cast<char*>(keyframe.data.data()), keyframe.step);
     map_.addKeyframe(view, keyframe.stamp_ns);
   }
 
   std::string path_;
+  uint64_t file_bytes_;
   std::map<uint32_t, Connection> connections_;
   std::unique_ptr<PreprocessingParams> params_;
   std::string params_text_;
@@ -417,7 +424,7 @@ RouteMap readMap(const std::string& path)
   const uint64_t size = static_cast<uint64_t>(file.tellg());
   file.seekg(13);  // past "#ROSBAG V2.0\n", checked above
   RecordScanner scanner(file, size);
-  MapContents contents(path);
+  MapContents contents(path, size);
   try
   {
     Record record;
