@@ -72,6 +72,11 @@ struct LocalizerParams
   /// featureless keyframes do not look similar to every query.
   bool energy_normalized_cost = true;
   int search_radius = 40;             ///< keyframes computed on each side of the predicted match while tracking
+  /// Inside a run of near-identical keyframes (the teach camera stood still, see stationary_ratio, or
+  /// saw nothing) the images cannot tell the keyframes apart: while tracking, report the keyframe reached
+  /// at the speed the DTW path had when it entered the run (keyframeThroughRun) instead of the DTW's pick
+  /// among the look-alikes. Off: the DTW's pick.
+  bool run_dead_reckoning = true;
   /// On maps of at least this many keyframes (0: never) a global search compares 2x2-averaged images
   /// (halveImage) with a shift range of ceil(m / 2): a quarter of the bytes and about half the shifts. The
   /// answer's reported shift is still measured at full resolution; tracking always is. On the 1788-frame
@@ -153,6 +158,11 @@ private:
   void rebuildComparators();
   /// First image row compared: below the sky rows, leaving at least one row.
   int firstComparedRow() const;
+  /// The keyframe to report for a DTW match `dtw_keyframe` while tracking: inside a run of near-identical
+  /// keyframes (the teach camera stood still, or saw nothing) the DTW cannot tell them apart, so the
+  /// answer moves through the run at the speed the path had when it entered (run_dead_reckoning).
+  int keyframeThroughRun(int dtw_keyframe);
+
   /// Appends the eq. 2 row of keyframes [first, first + width); `global`: a global search (coarse on big maps).
   void computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query, bool global,
                   int first, int width);
@@ -169,6 +179,9 @@ private:
   std::vector<uint8_t> keyframe_informative_;
   std::vector<uint8_t> keyframe_repeats_;  // [k]: keyframe k shows the view of k - 1 (stationary_change_)
   std::vector<int> keyframe_run_;          // [k]: number of keyframes up to k that are not repeats
+  std::vector<int> run_first_, run_last_;  // [k]: first and last keyframe of k's run (k itself if alone)
+  double run_position_ = -1.0;             // reported position inside the current run; < 0: not in one
+  double run_velocity_ = 0.0;              // keyframes per frame when the current run was entered
   ContrastRunsScratch contrast_scratch_;
   float median_energy_ = 0.0f;             // of the map's keyframes
   float min_texture_energy_ = 0.0f;        // min_texture_ratio * median_energy_

@@ -220,6 +220,14 @@ void Localizer::setParams(const LocalizerParams& params)
   keyframe_run_.assign(map_->size(), 0);
   for (size_t k = 1; k < map_->size(); ++k)
     keyframe_run_[k] = keyframe_run_[k - 1] + (keyframe_repeats_[k] ? 0 : 1);
+  const int n = static_cast<int>(map_->size());
+  run_first_.assign(n, 0);
+  run_last_.assign(n, n - 1);
+  for (int k = 1; k < n; ++k)
+    run_first_[k] = keyframe_run_[k] == keyframe_run_[k - 1] ? run_first_[k - 1] : k;
+  for (int k = n - 2; k >= 0; --k)
+    run_last_[k] = keyframe_run_[k] == keyframe_run_[k + 1] ? run_last_[k + 1] : k;
+  run_position_ = -1.0;
   if (comparators_changed)
     rebuildComparators();
 }
@@ -270,6 +278,34 @@ void Localizer::reset()
   frames_ = 0;
   last_path_.clear();
   entered_query_.release();
+  run_position_ = -1.0;
+}
+
+int Localizer::keyframeThroughRun(int dtw_keyframe)
+{
+  const int first = run_first_[dtw_keyframe], last = run_last_[dtw_keyframe];
+  if (last == first)
+  {
+    run_position_ = -1.0;
+    return dtw_keyframe;
+  }
+  const int current = run_position_ < 0.0 ? -1 : static_cast<int>(std::lround(run_position_));
+  if (current >= 0 && run_first_[current] == first)
+  {
+    run_position_ = std::min(static_cast<double>(last), run_position_ + run_velocity_);
+    return static_cast<int>(std::lround(run_position_));
+  }
+  // Entering the run: the path's mean speed over the rows before this frame (the robot most likely keeps
+  // it: a train stands at a station as long as the teach train did), from the keyframe after the last
+  // answer when that came from before the run.
+  const size_t rows = last_path_.size();
+  run_velocity_ =
+      rows >= 3 ? static_cast<double>(last_path_[rows - 2] - last_path_[0]) / static_cast<double>(rows - 2) : 1.0;
+  run_velocity_ = std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, run_velocity_));
+  run_position_ = last_match_ >= 0 && last_match_ < first ?
+                      std::min(static_cast<double>(last), std::max<double>(first, last_match_ + run_velocity_)) :
+                      dtw_keyframe;
+  return static_cast<int>(std::lround(run_position_));
 }
 
 void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query,
@@ -381,6 +417,10 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   // end keyframe: dead-reckon at the nominal speed instead of taking the first of the ties.
   if (!global && dtw_.lastAccumulated()[predicted - first] <= match.cost)
     match.keyframe = predicted;
+  if (!global && params_.method == SequenceMethod::kOnlineDtw && params_.run_dead_reckoning)
+    match.keyframe = keyframeThroughRun(match.keyframe);
+  else
+    run_position_ = -1.0;
 
   // Confidence: how much cheaper per row the best path is than the best path ending elsewhere. The
   // reported confidence is about the keyframe (a copy of the same view nearby competes); tracking and

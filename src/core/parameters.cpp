@@ -107,6 +107,8 @@ const std::map<std::string, Setter>& setters()
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->energy_normalized_cost); } },
     { "search_radius", LOCALIZER_FIELD(int, search_radius) },
     { "coarse_search_keyframes", LOCALIZER_FIELD(int, coarse_search_keyframes) },
+    { "run_dead_reckoning",
+      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->run_dead_reckoning); } },
     { "max_step", LOCALIZER_FIELD(int, dtw.max_step) },
     { "stop_penalty", LOCALIZER_FIELD(float, dtw.stop_penalty) },
     { "skip_penalty", LOCALIZER_FIELD(float, dtw.skip_penalty) },
