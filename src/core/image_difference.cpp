@@ -181,6 +181,23 @@ __attribute__((target("avx512bw"), always_inline)) inline void addRowSadsAvx512(
   }
 }
 
+/// sums[i] = the total of the first `lanes` 64-bit lanes of acc[i], for i in [0, kShifts).
+template <int kShifts>
+__attribute__((target("avx512bw"), always_inline)) inline void storeLaneSums(const __m512i* acc, int lanes,
+                                                                            uint32_t* sums)
+{
+  alignas(64) uint64_t lane[kShifts][8];
+  for (int i = 0; i < kShifts; ++i)
+    _mm512_store_si512(lane[i], acc[i]);
+  for (int i = 0; i < kShifts; ++i)
+  {
+    uint64_t total = 0;
+    for (int l = 0; l < lanes; ++l)
+      total += lane[i][l];
+    sums[i] = static_cast<uint32_t>(total);
+  }
+}
+
 /// Needs count >= kShifts.
 template <int kShifts>
 __attribute__((target("avx512bw"))) void sadsAvx512(const uint8_t* query, const uint8_t* keyframe, int width,
@@ -210,16 +227,7 @@ __attribute__((target("avx512bw"))) void sadsAvx512(const uint8_t* query, const 
       addRowSadsAvx512<kShifts, false>(q, k, n, strip, acc);
     for (; y < height; ++y, q += width, k += width, n += width)
       addRowSadsAvx512<kShifts, true>(q, k, n, strip, acc);
-    alignas(64) uint64_t lane[kShifts][8];
-    for (int i = 0; i < kShifts; ++i)
-      _mm512_store_si512(lane[i], acc[i]);
-    for (int i = 0; i < kShifts; ++i)
-    {
-      uint64_t total = 0;
-      for (int l = 0; l < lanes; ++l)
-        total += lane[i][l];
-      sums[start + i] = static_cast<uint32_t>(total);
-    }
+    storeLaneSums<kShifts>(acc, lanes, sums + start);
   }
 }
 
@@ -249,16 +257,7 @@ __attribute__((target("avx512bw"))) void sadsAvx512TwoRows(const uint8_t* query,
       addRowSadsAvx512<kShifts, true>(q, k, n, two_rows, acc);
     if (y < height)
       addRowSadsAvx512<kShifts, true>(q, k, n, one_row, acc);
-    alignas(64) uint64_t lane[kShifts][8];
-    for (int i = 0; i < kShifts; ++i)
-      _mm512_store_si512(lane[i], acc[i]);
-    for (int i = 0; i < kShifts; ++i)
-    {
-      uint64_t total = 0;
-      for (int l = 0; l < 8; ++l)
-        total += lane[i][l];
-      sums[start + i] = static_cast<uint32_t>(total);
-    }
+    storeLaneSums<kShifts>(acc, 8, sums + start);  // masked loads: every lane holds strip bytes only
   }
 }
 
