@@ -467,10 +467,10 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   if (result.keyframe >= 0)
   {
     result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
-    if (result.keyframe >= newest_first_ && result.keyframe < newest_first_ + newest_width_)
+    if (global && coarse_difference_ && result.query_informative)  // a coarse row holds no full-size shift
+      result.shift_px = difference_->compare(query, map_->keyframe(result.keyframe)).shift_px;
+    else if (result.keyframe >= newest_first_ && result.keyframe < newest_first_ + newest_width_)
       result.shift_px = shifts_[result.keyframe];
-    if (global && coarse_difference_ && result.query_informative)
-      result.shift_px = difference_->compare(query, map_->keyframe(result.keyframe)).shift_px;  // full resolution
     result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
   }
   return result;
