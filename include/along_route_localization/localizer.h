@@ -95,7 +95,9 @@ struct LocalizerParams
   /// per frame before tracking starts (GlobalConfirmation).
   int init_confirm_frames = 5;
   double confidence_threshold = 0.2;  ///< below it a frame counts as low-confidence
-  float confidence_scale = 0.5f;      ///< per-row cost margin that maps to confidence 1 - 1/e
+  /// Per-row cost margin that maps to confidence 1 - 1/e (over a full window of K rows; the reported
+  /// confidence weighs the margin by rows seen / K, Localizer::process).
+  float confidence_scale = 0.5f;
   /// Lost (global search again) when lost_after_frames of the last lost_window_frames informative
   /// frames were low-confidence (LossDetector). Featureless frames do not count.
   int lost_after_frames = 6;

@@ -423,19 +423,25 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
     run_position_ = -1.0;
 
   // Confidence: how much cheaper per row the best path is than the best path ending elsewhere. The
-  // reported confidence is about the keyframe (a copy of the same view nearby competes); tracking and
-  // loss go by the confidence in the place (only other runs of keyframes compete), so a station where
-  // the map holds many copies of one view does not look like being lost.
-  const auto confidenceFrom = [&](bool has_reference, float reference_cost) {
+  // reported confidence is about the keyframe (a copy of the same view nearby competes) and weighs that
+  // margin by the share of the K rows the path has seen: after a start or a loss, a margin over 5 rows
+  // is a sixth of the evidence of a full window (with 16 000 route-like distractors in the map a wrong
+  // stretch confirmed at start-up otherwise looked as sure as a long track). Tracking and loss go by the
+  // unweighted confidence in the place (only other runs of keyframes compete), so a station where the
+  // map holds many copies of one view does not look like being lost, and initializing is not slowed.
+  const auto confidenceFrom = [&](bool has_reference, float reference_cost, double evidence) {
     const float reference = has_reference ? reference_cost : params_.dtw.missing_cost;
     const double margin = std::max(0.0f, reference - match.cost);
-    return 1.0 - std::exp(-margin / params_.confidence_scale);
+    return 1.0 - std::exp(-margin * evidence / params_.confidence_scale);
   };
-  result.confidence = confidenceFrom(match.has_second, match.second_cost);
+  const int window_rows =
+      params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : params_.ring_buffer_rows;
+  const double evidence = std::min(1.0, static_cast<double>(match.rows) / std::max(1, window_rows));
+  result.confidence = confidenceFrom(match.has_second, match.second_cost, evidence);
   result.keyframe = match.keyframe;
 
   const bool confident =
-      confidenceFrom(match.has_second_place, match.second_place_cost) >= params_.confidence_threshold;
+      confidenceFrom(match.has_second_place, match.second_place_cost, 1.0) >= params_.confidence_threshold;
   if (params_.method == SequenceMethod::kSeqSlam)
   {
     if (ring_.size() >= params_.min_init_frames)

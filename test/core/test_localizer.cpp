@@ -12,6 +12,7 @@
 #include <opencv2/core.hpp>
 
 #include "along_route_localization/localizer.h"
+#include "along_route_localization/online_dtw.h"
 #include "along_route_localization/preprocessing.h"
 #include "along_route_localization/route_map.h"
 #include "nordland.h"
@@ -201,6 +202,38 @@ TEST(Localizer, TracksExactKeyframesInOrder)
   // The path ends at the current match.
   ASSERT_FALSE(localizer.lastPath().empty());
   EXPECT_EQ(30, localizer.lastPath().back());
+}
+
+TEST(Localizer, ConfidenceWeighsTheMarginByTheRowsSeen)
+{
+  // Reported confidence = 1 - exp(-margin * min(1, rows / K) / confidence_scale), where margin is the
+  // second-best end's per-row cost minus the best's (OnlineDtw::match on the localizer's own ring buffer,
+  // recomputed here). On a 40-keyframe map the tracking band (radius 40) covers every keyframe, so every
+  // row holds all columns. A path over 5 rows is a quarter of the evidence of one over K = 20.
+  const auto map = syntheticMap(40);
+  arl::LocalizerParams params;
+  params.ring_buffer_rows = 20;
+  arl::Localizer localizer(map, params);
+  arl::OnlineDtw dtw(params.dtw);
+  int weighted_frames = 0;
+  for (int i = 0; i < 30; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i));
+    const int rows = localizer.costs().size();
+    const arl::SequenceMatch m = dtw.match(localizer.costs(), 0, map->size(), params.ring_buffer_rows, false);
+    ASSERT_TRUE(m.has_second);
+    const double margin = std::max(0.0f, m.second_cost - m.cost);
+    const double evidence = std::min(1.0, rows / 20.0);
+    EXPECT_NEAR(1.0 - std::exp(-margin * evidence / params.confidence_scale), result.confidence, 1e-5)
+        << "frame " << i << ", " << rows << " rows";
+    if (rows < 20 && margin > 0.1)
+    {
+      // The unweighted confidence would be clearly higher.
+      EXPECT_LT(result.confidence + 0.01, 1.0 - std::exp(-margin / params.confidence_scale)) << "frame " << i;
+      ++weighted_frames;
+    }
+  }
+  EXPECT_GE(weighted_frames, 10);
 }
 
 TEST(Localizer, ReportsShiftAndHomingAngleOfAShiftedQuery)
