@@ -53,7 +53,8 @@ struct DtwParams
 /// (C centred per keyframe over the window when column_centering is set). The match is
 /// argmin_i min(M, S)_newest(i) over the candidate end keyframes [first_end, first_end + count).
 /// Because the accumulation spans only the K rows held, a wrong stretch falls out of the window and
-/// the path recovers; because every candidate end is scored, the match may leave [last, last + s].
+/// the path recovers; because every candidate end is scored, the match may leave [last, last + s]
+/// (the Localizer, while tracking, lets it move back by at most the exclusion radius: match's first_choice).
 class OnlineDtw
 {
 public:
@@ -67,8 +68,12 @@ public:
   /// near-identical keyframes (a station where the teach camera stood still is one run): the exclusion
   /// radius of second_place_cost is counted in runs, so copies of the best keyframe's view are not
   /// taken for another place. Without it second_place_cost = second_cost.
+  /// first_choice: the match is the cheapest end in [max(first_end, first_choice), first_end + count);
+  /// ends before it are not chosen but still compete for second_cost and second_place_cost, so a cheaper
+  /// path ending there shows as a margin of zero (the Localizer, while tracking, does not jump back to
+  /// another place: that is for its loss detection and global search).
   SequenceMatch match(const CostRingBuffer& buffer, int first_end, int count, int rows,
-                      bool backtrack = false, const int* keyframe_run = nullptr);
+                      bool backtrack = false, const int* keyframe_run = nullptr, int first_choice = 0);
 
   /// Accumulated cost row of the last match() (per end keyframe, divided by rows), for display.
   const std::vector<float>& lastAccumulated() const { return last_row_; }

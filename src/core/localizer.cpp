@@ -411,7 +411,14 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   if (params_.method == SequenceMethod::kSeqSlam)
     match = seqSlamMatch(ring_, 0, n, params_.seqslam);
   else
-    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, true, keyframe_run_.data());
+  {
+    // While tracking, the new match continues from the last one: it may move back by up to the
+    // exclusion radius (a correction at the same place, e.g. after running on past a stop), not further.
+    // A cheaper path ending further back is another place: it still counts against the confidence, so
+    // the loss detection and the global search take over if it persists.
+    const int first_choice = global ? 0 : std::min(last_match_ - params_.dtw.exclusion_radius, predicted);
+    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, true, keyframe_run_.data(), first_choice);
+  }
   last_path_ = match.path;
   // A window without evidence (featureless rows only, e.g. a tunnel longer than K frames) ties every
   // end keyframe: dead-reckon at the nominal speed instead of taking the first of the ties.

@@ -385,6 +385,38 @@ TEST(Localizer, ResetGoesBackToInitializing)
   EXPECT_EQ(11u, localizer.frameCount());
 }
 
+TEST(Localizer, DoesNotJumpBackToAnotherPlaceWhileTracking)
+{
+  // Tracking keyframes 0..40, then the queries restart at keyframe 10 (the robot was carried back).
+  // While the status says tracking, no answer lies more than the exclusion radius behind the previous
+  // one: going back to another place goes through the loss detection and a global search, after
+  // which the answers are right again.
+  const auto map = syntheticMap(60);
+  const arl::LocalizerParams params;
+  arl::Localizer localizer(map, params);
+  int previous = -1;
+  for (int i = 0; i <= 40; ++i)
+    previous = localizer.process(keyframeCopy(*map, i)).keyframe;
+  ASSERT_EQ(40, previous);
+  bool lost = false;
+  arl::LocalizationResult result;
+  for (int i = 10; i <= 45; ++i)
+  {
+    result = localizer.process(keyframeCopy(*map, i));
+    const bool tracking =
+        result.status == LocalizationStatus::kTracking || result.status == LocalizationStatus::kEndOfRoute;
+    lost = lost || result.status == LocalizationStatus::kLost;
+    if (tracking && !lost)
+    {
+      EXPECT_GE(result.keyframe, previous - params.dtw.exclusion_radius) << "query keyframe " << i;
+    }
+    previous = result.keyframe;
+  }
+  EXPECT_TRUE(lost);
+  EXPECT_EQ(LocalizationStatus::kTracking, result.status);
+  EXPECT_EQ(45, result.keyframe);
+}
+
 TEST(Localizer, EndOfRouteNearTheLastKeyframe)
 {
   const auto map = syntheticMap(60);

@@ -126,6 +126,38 @@ TEST(OnlineDtw, SecondCostRespectsExclusionRadius)
   EXPECT_FALSE(wide.match(buffer, 0, 10, 8).has_second);
 }
 
+TEST(OnlineDtw, FirstChoiceLimitsTheMatchNotTheCompetition)
+{
+  // Two paths over 4 rows of 30 keyframes, ones elsewhere: A = 0 1 2 3 (all zeros, total 0) and
+  // B = 17 18 19 20 (zeros, but 0.5 at row 3, total 0.5). Unrestricted the match is A's end, 3, with
+  // B's end as the runner-up: 0.5 / 4. With first_choice 10 the match is B's end, 20 (0.5 / 4), and A's
+  // cheaper end still competes: second_cost 0 / 4, i.e. no margin.
+  std::vector<std::vector<float>> matrix(4, std::vector<float>(30, 1.0f));
+  for (int r = 0; r < 4; ++r)
+  {
+    matrix[r][r] = 0.0f;
+    matrix[r][17 + r] = r == 3 ? 0.5f : 0.0f;
+  }
+  arl::CostRingBuffer buffer(4, 30);
+  appendRows(buffer, matrix);
+  arl::OnlineDtw dtw(handParams(5));
+  const arl::SequenceMatch free_match = dtw.match(buffer, 0, 30, 4, true);
+  EXPECT_EQ(3, free_match.keyframe);
+  EXPECT_NEAR(0.0f, free_match.cost, 1e-6);
+  EXPECT_NEAR(0.5f / 4, free_match.second_cost, 1e-6);
+
+  const arl::SequenceMatch limited = dtw.match(buffer, 0, 30, 4, true, nullptr, 10);
+  EXPECT_EQ(20, limited.keyframe);
+  EXPECT_NEAR(0.5f / 4, limited.cost, 1e-6);
+  ASSERT_TRUE(limited.has_second);
+  EXPECT_NEAR(0.0f, limited.second_cost, 1e-6);
+  EXPECT_NEAR(0.0f, limited.second_place_cost, 1e-6);
+  EXPECT_EQ((std::vector<int>{ 17, 18, 19, 20 }), limited.path);
+  // A first_choice before the window or past its end clamps to it.
+  EXPECT_EQ(3, dtw.match(buffer, 0, 30, 4, false, nullptr, -7).keyframe);
+  EXPECT_EQ(29, dtw.match(buffer, 0, 30, 4, false, nullptr, 99).keyframe);
+}
+
 TEST(OnlineDtw, UsesOnlyTheNewestRows)
 {
   // rows = 3: only frames 5..7 (keyframes 5, 7, 8) count: one (1,2) step -> 0.05 / 3.
