@@ -88,6 +88,13 @@ struct LocalizerParams
   /// answer's reported shift is still measured at full resolution; tracking always is. On the 1788-frame
   /// Nordland route the coarse rows gave the same accuracy (README, Performance).
   int coarse_search_keyframes = 4096;
+  /// While tracking, the new match continues from the last one (L): it is chosen among the ends
+  /// [L - dtw.exclusion_radius, L + dtw.max_step + max_jump_ahead] of the band. Further back or further
+  /// ahead is another place, left to the loss detection and the global search (a cheaper path there
+  /// still lowers the confidence). The slack ahead is wider than behind: answers lag the robot more
+  /// often than they lead it (after stations and tunnels crossed at the speed of arrival). On Nordland
+  /// 10-20 gave the same results, 5 was too tight (README, Results).
+  int max_jump_ahead = 15;
   DtwParams dtw = localizerDtwDefaults();  ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
   int min_init_frames = 5;            ///< frames before the first global answer

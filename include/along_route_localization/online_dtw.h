@@ -2,6 +2,7 @@
 #ifndef ALONG_ROUTE_LOCALIZATION_ONLINE_DTW_H
 #define ALONG_ROUTE_LOCALIZATION_ONLINE_DTW_H
 
+#include <limits>
 #include <vector>
 
 #include "along_route_localization/cost_ring_buffer.h"
@@ -54,7 +55,7 @@ struct DtwParams
 /// argmin_i min(M, S)_newest(i) over the candidate end keyframes [first_end, first_end + count).
 /// Because the accumulation spans only the K rows held, a wrong stretch falls out of the window and
 /// the path recovers; because every candidate end is scored, the match may leave [last, last + s]
-/// (the Localizer, while tracking, lets it move back by at most the exclusion radius: match's first_choice).
+/// (the Localizer, while tracking, limits how far it may jump: match's first_choice and last_choice).
 class OnlineDtw
 {
 public:
@@ -68,12 +69,14 @@ public:
   /// near-identical keyframes (a station where the teach camera stood still is one run): the exclusion
   /// radius of second_place_cost is counted in runs, so copies of the best keyframe's view are not
   /// taken for another place. Without it second_place_cost = second_cost.
-  /// first_choice: the match is the cheapest end in [max(first_end, first_choice), first_end + count);
-  /// ends before it are not chosen but still compete for second_cost and second_place_cost, so a cheaper
-  /// path ending there shows as a margin of zero (the Localizer, while tracking, does not jump back to
-  /// another place: that is for its loss detection and global search).
+  /// first_choice, last_choice: the match is the cheapest end in [first_choice, last_choice] (clamped to
+  /// [first_end, first_end + count), at least one end); ends outside are not chosen but still compete for
+  /// second_cost and second_place_cost, so a cheaper path ending there shows as a margin of zero (the
+  /// Localizer, while tracking, does not jump to another place: that is for its loss detection and
+  /// global search).
   SequenceMatch match(const CostRingBuffer& buffer, int first_end, int count, int rows,
-                      bool backtrack = false, const int* keyframe_run = nullptr, int first_choice = 0);
+                      bool backtrack = false, const int* keyframe_run = nullptr, int first_choice = 0,
+                      int last_choice = std::numeric_limits<int>::max());
 
   /// Accumulated cost row of the last match() (per end keyframe, divided by rows), for display.
   const std::vector<float>& lastAccumulated() const { return last_row_; }

@@ -61,6 +61,8 @@ std::string LocalizerParams::validate() const
     e << "stationary_ratio must be in [0, 1], got " << stationary_ratio;
   else if (coarse_search_keyframes < 0)
     e << "coarse_search_keyframes must be >= 0 (0: never), got " << coarse_search_keyframes;
+  else if (max_jump_ahead < 0 || max_jump_ahead > 1000000)
+    e << "max_jump_ahead must be in [0, 1000000] keyframes, got " << max_jump_ahead;
   else if (search_radius < 1)
     e << "search_radius must be >= 1 keyframe, got " << search_radius;
   else if (dtw.max_step < 1 || dtw.max_step > 16)
@@ -412,12 +414,18 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
     match = seqSlamMatch(ring_, 0, n, params_.seqslam);
   else
   {
-    // While tracking, the new match continues from the last one: it may move back by up to the
-    // exclusion radius (a correction at the same place, e.g. after running on past a stop), not further.
-    // A cheaper path ending further back is another place: it still counts against the confidence, so
-    // the loss detection and the global search take over if it persists.
-    const int first_choice = global ? 0 : std::min(last_match_ - params_.dtw.exclusion_radius, predicted);
-    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, true, keyframe_run_.data(), first_choice);
+    // While tracking, the new match continues from the last one (max_jump_ahead): a step back within the
+    // exclusion radius corrects the answer at the same place (e.g. after running on past a stop); a
+    // cheaper path further back or far ahead is another place, which still counts against the confidence,
+    // so the loss detection and the global search take over if it persists.
+    int first_choice = 0, last_choice = n - 1;
+    if (!global)
+    {
+      first_choice = std::min(last_match_ - params_.dtw.exclusion_radius, predicted);
+      last_choice = std::max(predicted, last_match_ + params_.dtw.max_step + params_.max_jump_ahead);
+    }
+    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, true, keyframe_run_.data(), first_choice,
+                       last_choice);
   }
   last_path_ = match.path;
   // A window without evidence (featureless rows only, e.g. a tunnel longer than K frames) ties every

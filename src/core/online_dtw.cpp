@@ -203,7 +203,7 @@ void OnlineDtw::accumulateColumns(const CostRingBuffer& buffer, const Window& wi
 }
 
 SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int count, int rows, bool backtrack,
-                               const int* keyframe_run, int first_choice)
+                               const int* keyframe_run, int first_choice, int last_choice)
 {
   SequenceMatch result;
   Window window;
@@ -246,7 +246,9 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   for (int i = 0; i < count; ++i)
     last_row_[i] = std::min(final_move_[end_offset + i], final_stop_[end_offset + i]) * norm;
   const int choice_begin = std::min(count - 1, std::max(0, first_choice - first_end));
-  const auto best_it = std::min_element(last_row_.begin() + choice_begin, last_row_.end());
+  const int choice_end = static_cast<int>(std::max<int64_t>(
+      choice_begin + 1, std::min<int64_t>(count, static_cast<int64_t>(last_choice) - first_end + 1)));
+  const auto best_it = std::min_element(last_row_.begin() + choice_begin, last_row_.begin() + choice_end);
   const int best = static_cast<int>(best_it - last_row_.begin());
   result.keyframe = first_end + best;
   result.cost = *best_it;

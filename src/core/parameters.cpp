@@ -107,6 +107,7 @@ const std::map<std::string, Setter>& setters()
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->energy_normalized_cost); } },
     { "search_radius", LOCALIZER_FIELD(int, search_radius) },
     { "coarse_search_keyframes", LOCALIZER_FIELD(int, coarse_search_keyframes) },
+    { "max_jump_ahead", LOCALIZER_FIELD(int, max_jump_ahead) },
     { "run_dead_reckoning",
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->run_dead_reckoning); } },
     { "max_step", LOCALIZER_FIELD(int, dtw.max_step) },

@@ -139,7 +139,7 @@ TEST(Localizer, RejectsEmptyMapInvalidParamsAndBadFrames)
 TEST(LocalizerParams, ValidateNamesInvalidValues)
 {
   EXPECT_EQ("", arl::LocalizerParams().validate());
-  std::vector<arl::LocalizerParams> invalid(8);
+  std::vector<arl::LocalizerParams> invalid(9);
   invalid[0].ring_buffer_rows = 0;
   invalid[1].max_shift_px = -1;
   invalid[2].dtw.max_step = 0;
@@ -148,6 +148,7 @@ TEST(LocalizerParams, ValidateNamesInvalidValues)
   invalid[5].confidence_threshold = 1.5;  // a confidence lives in [0, 1]
   invalid[6].contrast_window = -1;
   invalid[7].coarse_search_keyframes = -1;
+  invalid[8].max_jump_ahead = -1;
   for (size_t i = 0; i < invalid.size(); ++i)
     EXPECT_NE("", invalid[i].validate()) << "case " << i;
 
@@ -385,36 +386,72 @@ TEST(Localizer, ResetGoesBackToInitializing)
   EXPECT_EQ(11u, localizer.frameCount());
 }
 
-TEST(Localizer, DoesNotJumpBackToAnotherPlaceWhileTracking)
+// Feeds keyframes `before` (in order) of a 100-keyframe route to a fresh localizer, then keyframes
+// `after`, and counts the answers that, while the status says tracking (before the first loss), lie
+// outside [L - exclusion_radius, L + max_step + max_jump_ahead] of the previous answer L, with the
+// limits of `limits` (which may differ from the localizer's own `params`).
+struct JumpRun
 {
-  // Tracking keyframes 0..40, then the queries restart at keyframe 10 (the robot was carried back).
-  // While the status says tracking, no answer lies more than the exclusion radius behind the previous
-  // one: going back to another place goes through the loss detection and a global search, after
-  // which the answers are right again.
-  const auto map = syntheticMap(60);
-  const arl::LocalizerParams params;
+  bool lost = false;
+  int jumps = 0;
+  arl::LocalizationResult last;
+};
+JumpRun runWithAJump(const arl::LocalizerParams& params, const arl::LocalizerParams& limits,
+                     const std::vector<int>& before, const std::vector<int>& after)
+{
+  const auto map = syntheticMap(100);
   arl::Localizer localizer(map, params);
   int previous = -1;
-  for (int i = 0; i <= 40; ++i)
-    previous = localizer.process(keyframeCopy(*map, i)).keyframe;
-  ASSERT_EQ(40, previous);
-  bool lost = false;
-  arl::LocalizationResult result;
-  for (int i = 10; i <= 45; ++i)
+  for (int k : before)
+    previous = localizer.process(keyframeCopy(*map, k)).keyframe;
+  JumpRun run;
+  for (int k : after)
   {
-    result = localizer.process(keyframeCopy(*map, i));
+    run.last = localizer.process(keyframeCopy(*map, k));
     const bool tracking =
-        result.status == LocalizationStatus::kTracking || result.status == LocalizationStatus::kEndOfRoute;
-    lost = lost || result.status == LocalizationStatus::kLost;
-    if (tracking && !lost)
-    {
-      EXPECT_GE(result.keyframe, previous - params.dtw.exclusion_radius) << "query keyframe " << i;
-    }
-    previous = result.keyframe;
+        run.last.status == LocalizationStatus::kTracking || run.last.status == LocalizationStatus::kEndOfRoute;
+    run.lost = run.lost || run.last.status == LocalizationStatus::kLost;
+    if (tracking && !run.lost &&
+        (run.last.keyframe < previous - limits.dtw.exclusion_radius ||
+         run.last.keyframe > previous + limits.dtw.max_step + limits.max_jump_ahead))
+      ++run.jumps;
+    previous = run.last.keyframe;
   }
-  EXPECT_TRUE(lost);
-  EXPECT_EQ(LocalizationStatus::kTracking, result.status);
-  EXPECT_EQ(45, result.keyframe);
+  return run;
+}
+
+std::vector<int> keyframeRange(int first, int last)
+{
+  std::vector<int> range;
+  for (int k = first; k <= last; ++k)
+    range.push_back(k);
+  return range;
+}
+
+TEST(Localizer, DoesNotJumpToAnotherPlaceWhileTracking)
+{
+  // Carried back (tracking 0..60, then from 10 on) and a gap in the frames (tracking 0..20, then from 45
+  // on: 24 keyframes ahead, more than s + max_jump_ahead = 17): the answer does not jump while the status
+  // says tracking; the loss detection and a global search bring it to the right place.
+  const arl::LocalizerParams params;
+  ASSERT_LT(params.dtw.max_step + params.max_jump_ahead, 24);
+  const JumpRun back = runWithAJump(params, params, keyframeRange(0, 60), keyframeRange(10, 60));
+  EXPECT_EQ(0, back.jumps);
+  EXPECT_TRUE(back.lost);
+  EXPECT_EQ(LocalizationStatus::kTracking, back.last.status);
+  EXPECT_EQ(60, back.last.keyframe);
+  const JumpRun ahead = runWithAJump(params, params, keyframeRange(0, 20), keyframeRange(45, 90));
+  EXPECT_EQ(0, ahead.jumps);
+  EXPECT_TRUE(ahead.lost);
+  EXPECT_EQ(LocalizationStatus::kTracking, ahead.last.status);
+  EXPECT_EQ(90, ahead.last.keyframe);
+  // Without the limit ahead (max_jump_ahead 1000), the match jumps straight to the new place, more than
+  // s + 15 keyframes in one tracking frame.
+  arl::LocalizerParams unlimited = params;
+  unlimited.max_jump_ahead = 1000;
+  const JumpRun direct = runWithAJump(unlimited, params, keyframeRange(0, 20), keyframeRange(45, 90));
+  EXPECT_GE(direct.jumps, 1);
+  EXPECT_EQ(90, direct.last.keyframe);
 }
 
 TEST(Localizer, EndOfRouteNearTheLastKeyframe)
