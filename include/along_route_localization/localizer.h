@@ -51,6 +51,7 @@ inline DtwParams localizerDtwDefaults()
   // Nordland frames 0-893, sum of the four scenarios' within-one shares 3.320 -> 3.335; checked on
   // frames 894-1787: 3.666 -> 3.698.
   params.skip_penalty = 0.85f;
+  params.sustained_skip_penalty = 0.4f;
   return params;
 }
 
@@ -152,7 +153,8 @@ public:
 
   const RouteMap& map() const { return *map_; }
   const CostRingBuffer& costs() const { return ring_; }
-  /// Best path of the last frame, one keyframe per ring-buffer row, oldest first.
+  /// Best path of the last frame, one keyframe per ring-buffer row, oldest first; empty after a frame
+  /// that searched the whole map (initializing, lost).
   const std::vector<int>& lastPath() const { return last_path_; }
   /// Frames processed since construction or reset().
   uint64_t frameCount() const { return frames_; }

@@ -36,7 +36,11 @@ struct DtwParams
   /// nominal speed (one keyframe per frame), e.g. through a station where map and query both hold one
   /// view and every speed fits equally well. The Localizer uses 0.05 (localizerDtwDefaults).
   float first_stop_penalty = 0.0f;
-  float skip_penalty = 1.0f;   ///< added per keyframe skipped beyond one, for (1,k), k >= 2
+  float skip_penalty = 1.0f;   ///< added per keyframe skipped beyond one, for (1,k), k >= 2, speeding up
+  /// As skip_penalty, for a (1,k), k >= 2, that follows another such step: a robot that keeps driving
+  /// faster than it taught pays on speeding up only when this is 0. Equal to skip_penalty, every skip
+  /// pays the same (the plain recursion).
+  float sustained_skip_penalty = 1.0f;
   float missing_cost = 1.0f;   ///< cost of a keyframe a row did not compute (outside its band)
   int exclusion_radius = 5;    ///< keyframes around the best end ignored for second_cost
   /// Subtract from every keyframe its mean cost over the rows in the window before accumulating, so a
@@ -47,12 +51,14 @@ struct DtwParams
   bool column_centering = true;
 };
 
-/// Accumulated cost, row by row from the oldest row in the buffer to the newest, in two states per
-/// keyframe: M (the last step moved) and S (the last step was a stop):
-///   M_r(i) = C_r(i) + min_{k=1..s} [ min(M_{r-1}(i-k), S_{r-1}(i-k)) + (k - 1) * skip_penalty ]
-///   S_r(i) = C_r(i) + min( M_{r-1}(i) + first_stop_penalty, S_{r-1}(i) + stop_penalty )
+/// Accumulated cost, row by row from the oldest row in the buffer to the newest, in three states per
+/// keyframe: M (the last step was (1,1)), F (the last step skipped: (1,k), k >= 2) and S (a stop):
+///   M_r(i) = C_r(i) + min( M_{r-1}(i-1), S_{r-1}(i-1), F_{r-1}(i-1) )
+///   F_r(i) = C_r(i) + min_{k=2..s} min( min(M_{r-1}(i-k), S_{r-1}(i-k)) + (k - 1) * skip_penalty,
+///                                      F_{r-1}(i-k) + (k - 1) * sustained_skip_penalty )
+///   S_r(i) = C_r(i) + min( min(M_{r-1}(i), F_{r-1}(i)) + first_stop_penalty, S_{r-1}(i) + stop_penalty )
 /// (C centred per keyframe over the window when column_centering is set). The match is
-/// argmin_i min(M, S)_newest(i) over the candidate end keyframes [first_end, first_end + count).
+/// argmin_i min(M, S, F)_newest(i) over the candidate end keyframes [first_end, first_end + count).
 /// Because the accumulation spans only the K rows held, a wrong stretch falls out of the window and
 /// the path recovers; because every candidate end is scored, the match may leave [last, last + s]
 /// (the Localizer, while tracking, limits how far it may jump: match's first_choice and last_choice).
@@ -91,16 +97,16 @@ private:
   /// Per column chunk: the rows being accumulated, the centred costs and the column means.
   struct Columns
   {
-    std::vector<float> prev_move, prev_stop, cur_move, cur_stop, costs, mean;
+    std::vector<float> prev_move, prev_stop, prev_fast, cur_move, cur_stop, cur_fast, costs, mean;
   };
   /// The recurrence for window columns [begin, end): the newest row into final_*, steps when backtracking.
   void accumulateColumns(const CostRingBuffer& buffer, const Window& window, int begin, int end, Columns& scratch);
 
   DtwParams params_;
   std::vector<Columns> columns_;  // one per chunk (wide windows are split over threads)
-  std::vector<float> final_move_, final_stop_, last_row_;
-  // Backtracking, rows x width per state: bits 0-4 the step k, bit 7 set when it came from state S.
-  std::vector<unsigned char> move_steps_, stop_steps_;
+  std::vector<float> final_move_, final_stop_, final_fast_, last_row_;
+  // Backtracking, rows x width per state (M, S, F): bits 0-4 the step k, bits 5-6 the state it came from (1-3).
+  std::vector<unsigned char> move_steps_, stop_steps_, fast_steps_;
 };
 
 }  // namespace along_route_localization

@@ -424,7 +424,9 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
       first_choice = std::min(last_match_ - params_.dtw.exclusion_radius, predicted);
       last_choice = std::max(predicted, last_match_ + params_.dtw.max_step + params_.max_jump_ahead);
     }
-    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, true, keyframe_run_.data(), first_choice,
+    // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
+    // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
+    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, !global, keyframe_run_.data(), first_choice,
                        last_choice);
   }
   last_path_ = match.path;

@@ -14,7 +14,10 @@ namespace along_route_localization
 namespace
 {
 
-constexpr unsigned char kFromStop = 0x80;
+// Backtracking bytes: bits 0-4 the step k of the (1,k) that led into the state, bits 5-6 the state it
+// came from. The state codes start at 1: with a 0 among them GCC does not vectorize updateColumns.
+constexpr int kFromShift = 5;
+constexpr unsigned char kFromMove = 1, kFromStop = 2, kFromFast = 3;
 // Windows at least this wide (a global search) are split into column chunks run by cv::parallel_for_.
 constexpr int kParallelMinWidth = 4096;
 constexpr int kMinChunkWidth = 2048;
@@ -36,89 +39,149 @@ void forEachCost(const CostRingBuffer& buffer, int age, int lo, int width, float
     op(j, missing);
 }
 
+/// One row of the three states (online_dtw.h): the previous row's, the current row's, and the
+/// backtracking bytes (null when not backtracking).
+struct StateRows
+{
+  const float* prev_move;
+  const float* prev_stop;
+  const float* prev_fast;
+  float* cur_move;
+  float* cur_stop;
+  float* cur_fast;
+  unsigned char* move_steps;
+  unsigned char* stop_steps;
+  unsigned char* fast_steps;
+};
+
 /// Columns [from, to) of one row of the recurrence in online_dtw.h, each with `steps` columns to its left:
 /// cur_* from prev_* and the centred costs, plus the step bytes with kSteps. S > 0 fixes steps at compile
 /// time, so the loop over k unrolls and the loop over j vectorizes. The ternaries are the strict-< chain
-/// of the scalar form: k ascending, M before S, a later candidate wins only if strictly smaller.
+/// of the scalar form: a later candidate wins only if strictly smaller (order M, S, F; k ascending).
 template <int S, bool kSteps>
+#if defined(__GNUC__)
+__attribute__((noinline))  // keeps the restrict parameters: inlined, GCC versions the loop for aliasing
+#endif
 void updateColumns(const DtwParams& params, const float* __restrict prev_move, const float* __restrict prev_stop,
-                   const float* __restrict cost, int from, int to, int steps, float* __restrict cur_move,
-                   float* __restrict cur_stop, unsigned char* __restrict move_steps,
-                   unsigned char* __restrict stop_steps)
+                   const float* __restrict prev_fast, const float* __restrict cost, int from, int to, int steps,
+                   float* __restrict cur_move, float* __restrict cur_stop, float* __restrict cur_fast,
+                   unsigned char* __restrict move_steps, unsigned char* __restrict stop_steps,
+                   unsigned char* __restrict fast_steps)
 {
+  // The pointers are restrict function parameters (not locals copied from StateRows): that is what lets
+  // the compiler vectorize the loop over j without run-time alias checks.
   const int s = S > 0 ? S : steps;
   const float inf = std::numeric_limits<float>::infinity();
   const float stop_penalty = params.stop_penalty, first_stop_penalty = params.first_stop_penalty;
-  float penalty[17];
-  for (int k = 1; k <= s; ++k)
-    penalty[k] = static_cast<float>(k - 1) * params.skip_penalty;
+  float speed_up[17], keep_fast[17];
+  for (int k = 2; k <= s; ++k)
+  {
+    speed_up[k] = static_cast<float>(k - 1) * params.skip_penalty;
+    keep_fast[k] = static_cast<float>(k - 1) * params.sustained_skip_penalty;
+  }
   for (int j = from; j < to; ++j)
   {
-    // S: (1,0) after a move costs first_stop_penalty, after a stop stop_penalty.
-    const float after_stop = prev_stop[j] + stop_penalty;
-    const float after_move = prev_move[j] + first_stop_penalty;
-    const bool stop_from_stop = after_stop < after_move;
-    cur_stop[j] = cost[j] + (stop_from_stop ? after_stop : after_move);
-    // M: (1,k), k = 1..s, from either state.
-    float best = inf;
-    int choice = 1;  // as wide as a float, so the selections vectorize
-    for (int k = 1; k <= s; ++k)
+    // S: (1,0) after a move (either speed) costs first_stop_penalty, after a stop stop_penalty.
+    float best_stop = prev_move[j] + first_stop_penalty;
+    int from_stop = kFromMove;
+    const float stop_after_fast = prev_fast[j] + first_stop_penalty;
+    from_stop = stop_after_fast < best_stop ? kFromFast : from_stop;
+    best_stop = stop_after_fast < best_stop ? stop_after_fast : best_stop;
+    const float stop_after_stop = prev_stop[j] + stop_penalty;
+    from_stop = stop_after_stop < best_stop ? kFromStop : from_stop;
+    best_stop = stop_after_stop < best_stop ? stop_after_stop : best_stop;
+    cur_stop[j] = cost[j] + best_stop;
+    // M: (1,1) from any state, free.
+    float best_move = inf;
+    int from_move = kFromMove;
+    if (S > 0 || s >= 1)  // always, but in column 0 (updated alone, with s = j = 0)
     {
-      const float from_move = prev_move[j - k] + penalty[k];
-      choice = from_move < best ? k : choice;
-      best = from_move < best ? from_move : best;
-      const float from_stop = prev_stop[j - k] + penalty[k];
-      choice = from_stop < best ? (k | kFromStop) : choice;
-      best = from_stop < best ? from_stop : best;
+      best_move = prev_move[j - 1];
+      const float move_after_stop = prev_stop[j - 1];
+      from_move = move_after_stop < best_move ? kFromStop : from_move;
+      best_move = move_after_stop < best_move ? move_after_stop : best_move;
+      const float move_after_fast = prev_fast[j - 1];
+      from_move = move_after_fast < best_move ? kFromFast : from_move;
+      best_move = move_after_fast < best_move ? move_after_fast : best_move;
     }
-    cur_move[j] = cost[j] + best;
+    cur_move[j] = cost[j] + best_move;
+    // F: (1,k), k = 2..s: skip_penalty per keyframe skipped when speeding up (from M or S),
+    // sustained_skip_penalty when the previous step skipped too.
+    float best_fast = inf;
+    int choice = 2 | (kFromMove << kFromShift);  // as wide as a float, so the selections vectorize
+    const auto fast_step = [&](int k) {
+      const float fast_after_move = prev_move[j - k] + speed_up[k];
+      choice = fast_after_move < best_fast ? (k | (kFromMove << kFromShift)) : choice;
+      best_fast = fast_after_move < best_fast ? fast_after_move : best_fast;
+      const float fast_after_stop = prev_stop[j - k] + speed_up[k];
+      choice = fast_after_stop < best_fast ? (k | (kFromStop << kFromShift)) : choice;
+      best_fast = fast_after_stop < best_fast ? fast_after_stop : best_fast;
+      const float fast_after_fast = prev_fast[j - k] + keep_fast[k];
+      choice = fast_after_fast < best_fast ? (k | (kFromFast << kFromShift)) : choice;
+      best_fast = fast_after_fast < best_fast ? fast_after_fast : best_fast;
+    };
+    if (S > 0)
+    {
+      // Written out for the compile-time s, so the loop over j has no inner loop left to vectorize.
+      if (S >= 2)
+        fast_step(2);
+      if (S >= 3)
+        fast_step(3);
+      if (S >= 4)
+        fast_step(4);
+    }
+    else
+    {
+      for (int k = 2; k <= s; ++k)
+        fast_step(k);
+    }
+    cur_fast[j] = cost[j] + best_fast;
     if (kSteps)
     {
-      move_steps[j] = static_cast<unsigned char>(choice);
-      stop_steps[j] = static_cast<unsigned char>(stop_from_stop ? kFromStop : 0);
+      stop_steps[j] = static_cast<unsigned char>(from_stop << kFromShift);
+      move_steps[j] = static_cast<unsigned char>(1 | (from_move << kFromShift));
+      fast_steps[j] = static_cast<unsigned char>(choice);
     }
   }
 }
 
-/// Columns [from, to) of one row (step bytes when move_steps is given); column j has min(j, s) to its left.
+/// Columns [from, to) of one row (step bytes when rows.move_steps is set); column j has min(j, s) to its left.
 template <int S, bool kSteps>
-void updateRow(const DtwParams& params, const float* prev_move, const float* prev_stop, const float* cost, int from,
-               int to, float* cur_move, float* cur_stop, unsigned char* move_steps, unsigned char* stop_steps)
+void updateRow(const DtwParams& params, const StateRows& rows, const float* cost, int from, int to)
 {
   const int s = params.max_step;
   int j = from;
   for (; j < std::min(s, to); ++j)
-    updateColumns<0, kSteps>(params, prev_move, prev_stop, cost, j, j + 1, j, cur_move, cur_stop, move_steps,
-                             stop_steps);
-  updateColumns<S, kSteps>(params, prev_move, prev_stop, cost, j, to, s, cur_move, cur_stop, move_steps, stop_steps);
+    updateColumns<0, kSteps>(params, rows.prev_move, rows.prev_stop, rows.prev_fast, cost, j, j + 1, j, rows.cur_move,
+                             rows.cur_stop, rows.cur_fast, rows.move_steps, rows.stop_steps, rows.fast_steps);
+  updateColumns<S, kSteps>(params, rows.prev_move, rows.prev_stop, rows.prev_fast, cost, j, to, s, rows.cur_move,
+                           rows.cur_stop, rows.cur_fast, rows.move_steps, rows.stop_steps, rows.fast_steps);
 }
 
 template <int S>
-void updateRow(const DtwParams& params, const float* prev_move, const float* prev_stop, const float* cost, int from,
-               int to, float* cur_move, float* cur_stop, unsigned char* move_steps, unsigned char* stop_steps)
+void updateRow(const DtwParams& params, const StateRows& rows, const float* cost, int from, int to)
 {
-  if (move_steps)
-    updateRow<S, true>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+  if (rows.move_steps)
+    updateRow<S, true>(params, rows, cost, from, to);
   else
-    updateRow<S, false>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, nullptr, nullptr);
+    updateRow<S, false>(params, rows, cost, from, to);
 }
 
 /// updateRow with max_step fixed at compile time for the usual values.
-void updateRow(const DtwParams& params, const float* prev_move, const float* prev_stop, const float* cost, int from,
-               int to, float* cur_move, float* cur_stop, unsigned char* move_steps, unsigned char* stop_steps)
+void updateRow(const DtwParams& params, const StateRows& rows, const float* cost, int from, int to)
 {
   switch (params.max_step)
   {
     case 1:
-      return updateRow<1>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+      return updateRow<1>(params, rows, cost, from, to);
     case 2:
-      return updateRow<2>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+      return updateRow<2>(params, rows, cost, from, to);
     case 3:
-      return updateRow<3>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+      return updateRow<3>(params, rows, cost, from, to);
     case 4:
-      return updateRow<4>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+      return updateRow<4>(params, rows, cost, from, to);
     default:
-      return updateRow<0>(params, prev_move, prev_stop, cost, from, to, cur_move, cur_stop, move_steps, stop_steps);
+      return updateRow<0>(params, rows, cost, from, to);
   }
 }
 
@@ -148,8 +211,10 @@ void OnlineDtw::accumulateColumns(const CostRingBuffer& buffer, const Window& wi
   const float missing = params_.missing_cost;
   scratch.prev_move.resize(width);
   scratch.prev_stop.resize(width);
+  scratch.prev_fast.resize(width);
   scratch.cur_move.resize(width);
   scratch.cur_stop.resize(width);
+  scratch.cur_fast.resize(width);
   scratch.costs.resize(width);
   scratch.mean.assign(width, 0.0f);
   float* mean = scratch.mean.data();
@@ -177,29 +242,31 @@ void OnlineDtw::accumulateColumns(const CostRingBuffer& buffer, const Window& wi
   forEachCost(buffer, window.rows - 1, lo, width, missing,
               [prev_move, mean](int j, float c) { prev_move[j] = c - mean[j]; });
   std::fill(scratch.prev_stop.begin(), scratch.prev_stop.end(), std::numeric_limits<float>::infinity());
+  std::fill(scratch.prev_fast.begin(), scratch.prev_fast.end(), std::numeric_limits<float>::infinity());
   float* costs = scratch.costs.data();
   for (int age = window.rows - 2, r = 1; age >= 0; --age, ++r)
   {
     forEachCost(buffer, age, lo, width, missing, [costs, mean](int j, float c) { costs[j] = c - mean[j]; });
-    unsigned char* move_row = nullptr;
-    unsigned char* stop_row = nullptr;
+    StateRows rows{ scratch.prev_move.data(), scratch.prev_stop.data(), scratch.prev_fast.data(),
+                    scratch.cur_move.data(),  scratch.cur_stop.data(),  scratch.cur_fast.data(),
+                    nullptr,                  nullptr,                  nullptr };
+    // Columns left of `own` belong to the previous chunk: no step bytes.
+    updateRow(params_, rows, costs, 0, own);
     if (window.backtrack)  // indexed by the chunk's column j
     {
-      move_row = move_steps_.data() + static_cast<size_t>(r) * window.width + start;
-      stop_row = stop_steps_.data() + static_cast<size_t>(r) * window.width + start;
+      const size_t offset = static_cast<size_t>(r) * window.width + start;
+      rows.move_steps = move_steps_.data() + offset;
+      rows.stop_steps = stop_steps_.data() + offset;
+      rows.fast_steps = fast_steps_.data() + offset;
     }
-    const float* pm = scratch.prev_move.data();
-    const float* ps = scratch.prev_stop.data();
-    float* cm = scratch.cur_move.data();
-    float* cs = scratch.cur_stop.data();
-    // Columns left of `own` belong to the previous chunk: no step bytes.
-    updateRow(params_, pm, ps, costs, 0, own, cm, cs, nullptr, nullptr);
-    updateRow(params_, pm, ps, costs, own, width, cm, cs, move_row, stop_row);
+    updateRow(params_, rows, costs, own, width);
     scratch.prev_move.swap(scratch.cur_move);
     scratch.prev_stop.swap(scratch.cur_stop);
+    scratch.prev_fast.swap(scratch.cur_fast);
   }
   std::copy(scratch.prev_move.begin() + own, scratch.prev_move.end(), final_move_.begin() + begin);
   std::copy(scratch.prev_stop.begin() + own, scratch.prev_stop.end(), final_stop_.begin() + begin);
+  std::copy(scratch.prev_fast.begin() + own, scratch.prev_fast.end(), final_fast_.begin() + begin);
 }
 
 SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int count, int rows, bool backtrack,
@@ -218,10 +285,12 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   const int width = window.width;
   final_move_.resize(width);
   final_stop_.resize(width);
+  final_fast_.resize(width);
   if (backtrack)
   {
     move_steps_.resize(static_cast<size_t>(num_rows) * width);
     stop_steps_.resize(static_cast<size_t>(num_rows) * width);
+    fast_steps_.resize(static_cast<size_t>(num_rows) * width);
   }
 
   // Two chunks per thread, so a thread slowed by other work does not hold up the rest.
@@ -244,7 +313,9 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   const float norm = 1.0f / static_cast<float>(num_rows);
   last_row_.resize(count);
   for (int i = 0; i < count; ++i)
-    last_row_[i] = std::min(final_move_[end_offset + i], final_stop_[end_offset + i]) * norm;
+    last_row_[i] =
+        std::min(final_move_[end_offset + i], std::min(final_stop_[end_offset + i], final_fast_[end_offset + i])) *
+        norm;
   const int choice_begin = std::min(count - 1, std::max(0, first_choice - first_end));
   const int choice_end = static_cast<int>(std::max<int64_t>(
       choice_begin + 1, std::min<int64_t>(count, static_cast<int64_t>(last_choice) - first_end + 1)));
@@ -279,15 +350,26 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   {
     result.path.assign(num_rows, 0);
     int j = best + end_offset;
-    bool in_stop = final_stop_[j] < final_move_[j];
+    // The cheapest state at the end, ties in the order M, S, F (as in updateColumns).
+    unsigned char state = kFromMove;
+    float best_state = final_move_[j];
+    if (final_stop_[j] < best_state)
+    {
+      state = kFromStop;
+      best_state = final_stop_[j];
+    }
+    if (final_fast_[j] < best_state)
+      state = kFromFast;
     for (int r = num_rows - 1; r >= 0; --r)
     {
       result.path[r] = window.lo + j;
       if (r == 0)
         break;
-      const unsigned char choice = (in_stop ? stop_steps_ : move_steps_)[static_cast<size_t>(r) * width + j];
-      j -= in_stop ? 0 : (choice & 0x1f);
-      in_stop = (choice & kFromStop) != 0;
+      const std::vector<unsigned char>& steps =
+          state == kFromStop ? stop_steps_ : (state == kFromFast ? fast_steps_ : move_steps_);
+      const unsigned char choice = steps[static_cast<size_t>(r) * width + j];
+      j -= state == kFromStop ? 0 : (choice & 0x1f);
+      state = static_cast<unsigned char>((choice >> kFromShift) & 0x3);
     }
   }
   return result;

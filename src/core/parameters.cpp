@@ -113,6 +113,7 @@ const std::map<std::string, Setter>& setters()
     { "max_step", LOCALIZER_FIELD(int, dtw.max_step) },
     { "stop_penalty", LOCALIZER_FIELD(float, dtw.stop_penalty) },
     { "skip_penalty", LOCALIZER_FIELD(float, dtw.skip_penalty) },
+    { "sustained_skip_penalty", LOCALIZER_FIELD(float, dtw.sustained_skip_penalty) },
     { "missing_cost", LOCALIZER_FIELD(float, dtw.missing_cost) },
     { "exclusion_radius", LOCALIZER_FIELD(int, dtw.exclusion_radius) },
     { "column_centering",

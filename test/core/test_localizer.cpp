@@ -442,15 +442,22 @@ TEST(Localizer, DoesNotJumpToAnotherPlaceWhileTracking)
   EXPECT_EQ(60, back.last.keyframe);
   const JumpRun ahead = runWithAJump(params, params, keyframeRange(0, 20), keyframeRange(45, 90));
   EXPECT_EQ(0, ahead.jumps);
-  EXPECT_TRUE(ahead.lost);
   EXPECT_EQ(LocalizationStatus::kTracking, ahead.last.status);
   EXPECT_EQ(90, ahead.last.keyframe);
-  // Without the limit ahead (max_jump_ahead 1000), the match jumps straight to the new place, more than
-  // s + 15 keyframes in one tracking frame.
-  arl::LocalizerParams unlimited = params;
+  // Where every skip pays skip_penalty (sustained_skip_penalty = skip_penalty), the path cannot catch up
+  // at s keyframes per frame; without the limit ahead (max_jump_ahead 1000) the match then jumps to the
+  // new place, more than s + 15 keyframes in one tracking frame, and with it the track is lost and found.
+  arl::LocalizerParams plain = params;
+  plain.dtw.sustained_skip_penalty = plain.dtw.skip_penalty;
+  const JumpRun limited = runWithAJump(plain, params, keyframeRange(0, 20), keyframeRange(45, 90));
+  EXPECT_EQ(0, limited.jumps);
+  EXPECT_TRUE(limited.lost);
+  EXPECT_EQ(90, limited.last.keyframe);
+  arl::LocalizerParams unlimited = plain;
   unlimited.max_jump_ahead = 1000;
   const JumpRun direct = runWithAJump(unlimited, params, keyframeRange(0, 20), keyframeRange(45, 90));
   EXPECT_GE(direct.jumps, 1);
+  EXPECT_FALSE(direct.lost);
   EXPECT_EQ(90, direct.last.keyframe);
 }
 

@@ -50,6 +50,7 @@ arl::DtwParams handParams(int exclusion_radius)
   params.max_step = 2;
   params.stop_penalty = 0.3f;
   params.skip_penalty = 0.05f;
+  params.sustained_skip_penalty = 0.05f;  // every skip pays the same: the plain two-state recursion
   params.missing_cost = 1.0f;
   params.exclusion_radius = exclusion_radius;
   params.column_centering = false;  // these tests check the plain recursion; centering has its own test
@@ -76,6 +77,41 @@ TEST(OnlineDtw, FollowsStopAndGo)
   ASSERT_EQ(kStopAndGo.size(), match.path.size());
   for (size_t r = 0; r < kStopAndGo.size(); ++r)
     EXPECT_EQ(kStopAndGo[r], match.path[r]) << "row " << r;
+}
+
+TEST(OnlineDtw, SustainedSkipsPayTheSustainedPenalty)
+{
+  // The stop-and-go path has two (1,2) steps in a row (3 -> 5 -> 7). With skip_penalty 0.05 and
+  // sustained_skip_penalty 0 only the first pays: 0.05 in total instead of 0.1 (FollowsStopAndGo); the
+  // path is unchanged. With skip_penalty 1 and sustained 0, speeding up costs 1 and keeping the speed
+  // nothing: 1 / 8; a (1,2) right after a stop or a (1,1) pays the full penalty again.
+  arl::CostRingBuffer buffer(8, 10);
+  appendRows(buffer, onesWithZeroPath(10, kStopAndGo));
+  arl::DtwParams params = handParams(2);
+  params.sustained_skip_penalty = 0.0f;
+  arl::OnlineDtw dtw(params);
+  arl::SequenceMatch match = dtw.match(buffer, 0, 10, 8, true);
+  EXPECT_EQ(8, match.keyframe);
+  EXPECT_NEAR(0.05f / 8, match.cost, 1e-6);
+  EXPECT_EQ(kStopAndGo, match.path);
+
+  params.skip_penalty = 1.0f;
+  dtw.setParams(params);
+  match = dtw.match(buffer, 0, 10, 8, true);
+  EXPECT_EQ(8, match.keyframe);
+  EXPECT_NEAR(1.0f / 8, match.cost, 1e-6);
+  EXPECT_EQ(kStopAndGo, match.path);
+
+  // 0 2 4 6 | 6 (stop) | 8 10 12: the speed-up after the stop pays again. Costs: ones off the path.
+  const std::vector<int> fast_stop_fast = { 0, 2, 4, 6, 6, 8, 10, 12 };
+  arl::CostRingBuffer second(8, 14);
+  appendRows(second, onesWithZeroPath(14, fast_stop_fast));
+  params.first_stop_penalty = 0.0f;
+  dtw.setParams(params);
+  match = dtw.match(second, 0, 14, 8, true);
+  EXPECT_EQ(12, match.keyframe);
+  EXPECT_NEAR(2.0f / 8, match.cost, 1e-6);  // two speed-ups (rows 1 and 5), every other step free
+  EXPECT_EQ(fast_stop_fast, match.path);
 }
 
 TEST(OnlineDtw, AccumulatedRowMatchesHandRecursion)
@@ -153,6 +189,12 @@ TEST(OnlineDtw, FirstChoiceLimitsTheMatchNotTheCompetition)
   EXPECT_NEAR(0.0f, limited.second_cost, 1e-6);
   EXPECT_NEAR(0.0f, limited.second_place_cost, 1e-6);
   EXPECT_EQ((std::vector<int>{ 17, 18, 19, 20 }), limited.path);
+  // last_choice limits the other side: in [10, 19] the cheapest end is 19, one step short of B's (a
+  // path with one (1,0) or one 1 more); with [0, 2] it is 2, next to A's.
+  const arl::SequenceMatch before_b = dtw.match(buffer, 0, 30, 4, false, nullptr, 10, 19);
+  EXPECT_EQ(19, before_b.keyframe);
+  EXPECT_NEAR(0.0f, before_b.second_cost, 1e-6);
+  EXPECT_EQ(2, dtw.match(buffer, 0, 30, 4, false, nullptr, 0, 2).keyframe);
   // A first_choice before the window or past its end clamps to it.
   EXPECT_EQ(3, dtw.match(buffer, 0, 30, 4, false, nullptr, -7).keyframe);
   EXPECT_EQ(29, dtw.match(buffer, 0, 30, 4, false, nullptr, 99).keyframe);
