@@ -418,11 +418,12 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
     // exclusion radius corrects the answer at the same place (e.g. after running on past a stop); a
     // cheaper path further back or far ahead is another place, which still counts against the confidence,
     // so the loss detection and the global search take over if it persists.
+    // (The range always holds `predicted`, last_match_ + 1 at most.)
     int first_choice = 0, last_choice = n - 1;
     if (!global)
     {
-      first_choice = std::min(last_match_ - params_.dtw.exclusion_radius, predicted);
-      last_choice = std::max(predicted, last_match_ + params_.dtw.max_step + params_.max_jump_ahead);
+      first_choice = last_match_ - params_.dtw.exclusion_radius;
+      last_choice = last_match_ + params_.dtw.max_step + params_.max_jump_ahead;
     }
     // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
     // it would store rows x N step bytes per state for a path that is only drawn in the debug image.

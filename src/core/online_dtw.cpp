@@ -60,7 +60,7 @@ struct StateRows
 /// of the scalar form: a later candidate wins only if strictly smaller (order M, S, F; k ascending).
 template <int S, bool kSteps>
 #if defined(__GNUC__)
-__attribute__((noinline))  // keeps the restrict parameters: inlined, GCC versions the loop for aliasing
+__attribute__((noinline))
 #endif
 void updateColumns(const DtwParams& params, const float* __restrict prev_move, const float* __restrict prev_stop,
                    const float* __restrict prev_fast, const float* __restrict cost, int from, int to, int steps,
@@ -68,8 +68,8 @@ void updateColumns(const DtwParams& params, const float* __restrict prev_move, c
                    unsigned char* __restrict move_steps, unsigned char* __restrict stop_steps,
                    unsigned char* __restrict fast_steps)
 {
-  // The pointers are restrict function parameters (not locals copied from StateRows): that is what lets
-  // the compiler vectorize the loop over j without run-time alias checks.
+  // The pointers are restrict parameters of a function that is not inlined (not locals copied from
+  // StateRows): inlined, GCC loses them and versions the loop over j for aliasing, and runs it unvectorized.
   const int s = S > 0 ? S : steps;
   const float inf = std::numeric_limits<float>::infinity();
   const float stop_penalty = params.stop_penalty, first_stop_penalty = params.first_stop_penalty;
@@ -368,7 +368,7 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
       const std::vector<unsigned char>& steps =
           state == kFromStop ? stop_steps_ : (state == kFromFast ? fast_steps_ : move_steps_);
       const unsigned char choice = steps[static_cast<size_t>(r) * width + j];
-      j -= state == kFromStop ? 0 : (choice & 0x1f);
+      j -= choice & 0x1f;  // k = 0 in a stop's byte
       state = static_cast<unsigned char>((choice >> kFromShift) & 0x3);
     }
   }
