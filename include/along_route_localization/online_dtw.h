@@ -43,8 +43,9 @@ struct DtwParams
   float sustained_skip_penalty = 1.0f;
   float missing_cost = 1.0f;   ///< cost of a keyframe a row did not compute (outside its band)
   int exclusion_radius = 5;    ///< keyframes around the best end ignored for second_cost
-  /// Subtract from every keyframe its mean cost over the rows in the window before accumulating, so a
-  /// keyframe that resembles every query (a generic view) cannot carry a path by itself. Rows flagged
+  /// Subtract from every keyframe its mean cost over the rows in the window that computed it (missing_cost
+  /// is neither averaged in nor centred) before accumulating, so a keyframe that resembles every query (a
+  /// generic view) cannot carry a path by itself. Rows flagged
   /// repeatedQuery (except the oldest) are left out of the mean, and the mean of the D distinct rows
   /// is scaled by (D - 1) / (K' - 1) for K' rows: a window of one view held K' times (D = 1) is not
   /// centred at all, instead of to zero everywhere (which would tie every keyframe).
@@ -57,7 +58,7 @@ struct DtwParams
 ///   F_r(i) = C_r(i) + min_{k=2..s} min( min(M_{r-1}(i-k), S_{r-1}(i-k)) + (k - 1) * skip_penalty,
 ///                                      F_{r-1}(i-k) + (k - 1) * sustained_skip_penalty )
 ///   S_r(i) = C_r(i) + min( min(M_{r-1}(i), F_{r-1}(i)) + first_stop_penalty, S_{r-1}(i) + stop_penalty )
-/// (C centred per keyframe over the window when column_centering is set). The match is
+/// (C centred per keyframe over the rows that computed it when column_centering is set). The match is
 /// argmin_i min(M, S, F)_newest(i) over the candidate end keyframes [first_end, first_end + count).
 /// Because the accumulation spans only the K rows held, a wrong stretch falls out of the window and
 /// the path recovers; because every candidate end is scored, the match may leave [last, last + s]
@@ -97,7 +98,7 @@ private:
   /// Per column chunk: the rows being accumulated, the centred costs and the column means.
   struct Columns
   {
-    std::vector<float> prev_move, prev_stop, prev_fast, cur_move, cur_stop, cur_fast, costs, mean;
+    std::vector<float> prev_move, prev_stop, prev_fast, cur_move, cur_stop, cur_fast, costs, mean, count;
   };
   /// The recurrence for window columns [begin, end): the newest row into final_*, steps when backtracking.
   void accumulateColumns(const CostRingBuffer& buffer, const Window& window, int begin, int end, Columns& scratch);

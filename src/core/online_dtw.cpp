@@ -22,21 +22,30 @@ constexpr unsigned char kFromMove = 1, kFromStop = 2, kFromFast = 3;
 constexpr int kParallelMinWidth = 4096;
 constexpr int kMinChunkWidth = 2048;
 
-/// Calls op(j, cost) for every column j of [0, width) of the window starting at keyframe lo: the row's
-/// cost of keyframe lo + j, or `missing` outside its band. Three plain loops, no test per element.
-template <typename Op>
-void forEachCost(const CostRingBuffer& buffer, int age, int lo, int width, float missing, Op op)
+/// The columns [begin, end) of the window [lo, lo + width) that a ring-buffer row computed (its band).
+struct BandColumns
+{
+  int begin, end;
+};
+BandColumns bandColumns(const CostRingBuffer& buffer, int age, int lo, int width)
 {
   const int first = buffer.rowFirst(age);
   const int begin = std::min(std::max(first - lo, 0), width);
-  const int end = std::min(std::max(first + buffer.rowWidth(age) - lo, begin), width);
+  return { begin, std::min(std::max(first + buffer.rowWidth(age) - lo, begin), width) };
+}
+
+/// out[j] = the row's cost of keyframe lo + j minus mean[j] for j in [0, width), or `missing` (not
+/// centred) outside the row's band.
+void centredCosts(const CostRingBuffer& buffer, int age, int lo, int width, float missing, const float* mean,
+                  float* out)
+{
+  const BandColumns band = bandColumns(buffer, age, lo, width);
   const float* row = buffer.row(age);
-  for (int j = 0; j < begin; ++j)
-    op(j, missing);
-  for (int j = begin; j < end; ++j)
-    op(j, row[lo + j - first]);
-  for (int j = end; j < width; ++j)
-    op(j, missing);
+  const int offset = lo - buffer.rowFirst(age);  // row[j + offset]: keyframe lo + j
+  std::fill(out, out + band.begin, missing);
+  for (int j = band.begin; j < band.end; ++j)
+    out[j] = row[j + offset] - mean[j];
+  std::fill(out + band.end, out + width, missing);
 }
 
 /// One row of the three states (online_dtw.h): the previous row's, the current row's, and the
@@ -222,31 +231,41 @@ void OnlineDtw::accumulateColumns(const CostRingBuffer& buffer, const Window& wi
   {
     // Rows of a repeated query carry no new evidence about which keyframes resemble every query: the
     // mean runs over the distinct rows and shrinks by (distinct - 1) / (rows - 1), so a window of one
-    // view repeated K times is not centred to zero everywhere.
+    // view repeated K times is not centred to zero everywhere. A column's mean is over the rows that
+    // computed it, and missing_cost is not centred: averaged in, it made the few computed costs of a
+    // keyframe that had just entered the tracking band look cheap, which pulled paths to the band's
+    // leading edge.
+    scratch.count.assign(width, 0.0f);
+    float* count = scratch.count.data();
     int distinct = 0;
     for (int age = 0; age < window.rows; ++age)
     {
       if (buffer.repeatedQuery(age) && age != window.rows - 1)
         continue;
       ++distinct;
-      forEachCost(buffer, age, lo, width, missing, [mean](int j, float c) { mean[j] += c; });
+      const BandColumns band = bandColumns(buffer, age, lo, width);
+      const float* row = buffer.row(age);
+      const int offset = lo - buffer.rowFirst(age);
+      for (int j = band.begin; j < band.end; ++j)
+      {
+        mean[j] += row[j + offset];
+        count[j] += 1.0f;
+      }
     }
-    const float scale =
-        static_cast<float>(distinct - 1) / static_cast<float>(window.rows - 1) / static_cast<float>(distinct);
+    const float shrink = static_cast<float>(distinct - 1) / static_cast<float>(window.rows - 1);
     for (int j = 0; j < width; ++j)
-      mean[j] *= scale;
+      mean[j] = count[j] > 0.0f ? mean[j] * shrink / count[j] : 0.0f;
   }
 
   // The oldest row: a path starts in state M.
   float* prev_move = scratch.prev_move.data();
-  forEachCost(buffer, window.rows - 1, lo, width, missing,
-              [prev_move, mean](int j, float c) { prev_move[j] = c - mean[j]; });
+  centredCosts(buffer, window.rows - 1, lo, width, missing, mean, prev_move);
   std::fill(scratch.prev_stop.begin(), scratch.prev_stop.end(), std::numeric_limits<float>::infinity());
   std::fill(scratch.prev_fast.begin(), scratch.prev_fast.end(), std::numeric_limits<float>::infinity());
   float* costs = scratch.costs.data();
   for (int age = window.rows - 2, r = 1; age >= 0; --age, ++r)
   {
-    forEachCost(buffer, age, lo, width, missing, [costs, mean](int j, float c) { costs[j] = c - mean[j]; });
+    centredCosts(buffer, age, lo, width, missing, mean, costs);
     StateRows rows{ scratch.prev_move.data(), scratch.prev_stop.data(), scratch.prev_fast.data(),
                     scratch.cur_move.data(),  scratch.cur_stop.data(),  scratch.cur_fast.data(),
                     nullptr,                  nullptr,                  nullptr };

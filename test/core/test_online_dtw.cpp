@@ -505,6 +505,28 @@ TEST(OnlineDtw, RepeatedRowsAreLeftOutOfTheColumnMean)
   }
 }
 
+TEST(OnlineDtw, ColumnMeansLeaveOutRowsThatDidNotComputeTheKeyframe)
+{
+  // While tracking, keyframes enter the band at its leading edge: keyframe 3 below is computed by the
+  // newest row only (missing 1 in the two older rows). Rows, oldest first, bands [0, 3), [0, 3), [0, 4):
+  //   0 1 1 | 1 0 1 | 1 1 0 -0.2.  stop 0.3, skip 0.05, column centering on.
+  // Means over the rows that computed the column: 2/3 for keyframes 0-2, -0.2 for keyframe 3.
+  // Centred: diagonal -2/3 per row (A(2) = 3 * -2/3 = -2, the match), keyframe 3's newest cost 0,
+  // its missing entries stay 1. A(3) = 0 + (0 -> 1 -> then a (1,2) step from keyframe 1: -4/3 + 0.05)
+  // = -1.2833. With missing_cost averaged into the mean (1 + 1 - 0.2) / 3 = 0.6, keyframe 3's newest cost
+  // would become -0.8 and A(3) = -2.0833 < -2: the band's edge would win.
+  arl::DtwParams params = handParams(0);
+  params.column_centering = true;
+  arl::CostRingBuffer buffer(3, 4);
+  appendRows(buffer, { { 0.0f, 1.0f, 1.0f }, { 1.0f, 0.0f, 1.0f }, { 1.0f, 1.0f, 0.0f, -0.2f } });
+  arl::OnlineDtw dtw(params);
+  const arl::SequenceMatch match = dtw.match(buffer, 0, 4, 3);
+  EXPECT_EQ(2, match.keyframe);
+  EXPECT_NEAR(-2.0f / 3, match.cost, 1e-6);
+  ASSERT_EQ(4u, dtw.lastAccumulated().size());
+  EXPECT_NEAR((-4.0f / 3 + 0.05f) / 3, dtw.lastAccumulated()[3], 1e-6);
+}
+
 TEST(OnlineDtw, SecondPlaceCostCountsRunsNotKeyframes)
 {
   // kStopAndGo again: A_7 = 8.8 7.5 5.2 3.6 3.0 2.35 2.05 1.1 0.1 1.15 (AccumulatedRowMatchesHandRecursion),
