@@ -108,7 +108,7 @@ struct LocalizerParams
   int init_confirm_frames = 5;
   double confidence_threshold = 0.2;  ///< below it a frame counts as low-confidence
   /// Per-row cost margin that maps to confidence 1 - 1/e (over a full window of K rows; the reported
-  /// confidence weighs the margin by rows seen / K, Localizer::process).
+  /// confidence weighs the margin by the distinct views among the rows / K, Localizer::process).
   float confidence_scale = 0.5f;
   /// Lost (global search again) when lost_after_frames of the last lost_window_frames informative
   /// frames were low-confidence (LossDetector). Featureless frames do not count.

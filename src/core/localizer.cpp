@@ -442,7 +442,8 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
 
   // Confidence: how much cheaper per row the best path is than the best path ending elsewhere. The
   // reported confidence is about the keyframe (a copy of the same view nearby competes) and weighs that
-  // margin by the share of the K rows the path has seen: after a start or a loss, a margin over 5 rows
+  // margin by the share of the K rows the path has seen, counting distinct views only (a row of a
+  // repeated query, the camera standing still, adds none): after a start or a loss, a margin over 5 rows
   // is a sixth of the evidence of a full window (with 16 000 route-like distractors in the map a wrong
   // stretch confirmed at start-up otherwise looked as sure as a long track). Tracking and loss go by the
   // unweighted confidence in the place (only other runs of keyframes compete), so a station where the
@@ -454,7 +455,10 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   };
   const int window_rows =
       params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : params_.ring_buffer_rows;
-  const double evidence = std::min(1.0, static_cast<double>(match.rows) / std::max(1, window_rows));
+  int distinct_rows = 0;
+  for (int age = 0; age < match.rows; ++age)
+    distinct_rows += ring_.repeatedQuery(age) && age != match.rows - 1 ? 0 : 1;
+  const double evidence = std::min(1.0, static_cast<double>(distinct_rows) / std::max(1, window_rows));
   result.confidence = confidenceFrom(match.has_second, match.second_cost, evidence);
   result.keyframe = match.keyframe;
 

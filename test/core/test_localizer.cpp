@@ -207,7 +207,7 @@ TEST(Localizer, TracksExactKeyframesInOrder)
 
 TEST(Localizer, ConfidenceWeighsTheMarginByTheRowsSeen)
 {
-  // Reported confidence = 1 - exp(-margin * min(1, rows / K) / confidence_scale), where margin is the
+  // Reported confidence = 1 - exp(-margin * min(1, distinct rows / K) / confidence_scale), where margin is the
   // second-best end's per-row cost minus the best's (OnlineDtw::match on the localizer's own ring buffer,
   // recomputed here). On a 40-keyframe map the tracking band (radius 40) covers every keyframe, so every
   // row holds all columns. A path over 5 rows is a quarter of the evidence of one over K = 20.
@@ -235,6 +235,20 @@ TEST(Localizer, ConfidenceWeighsTheMarginByTheRowsSeen)
     }
   }
   EXPECT_GE(weighted_frames, 10);
+
+  // The camera stops: keyframe 29's view again and again. A repeated view adds no evidence, so after r
+  // repeats the window of 20 rows holds 20 - r distinct views: evidence (20 - r) / 20.
+  for (int r = 1; r <= 8; ++r)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, 29));
+    ASSERT_EQ(20, localizer.costs().size());
+    ASSERT_TRUE(localizer.costs().repeatedQuery(0)) << "repeat " << r;
+    const arl::SequenceMatch m = dtw.match(localizer.costs(), 0, map->size(), params.ring_buffer_rows, false);
+    ASSERT_TRUE(m.has_second);
+    const double margin = std::max(0.0f, m.second_cost - m.cost);
+    EXPECT_NEAR(1.0 - std::exp(-margin * (20 - r) / 20.0 / params.confidence_scale), result.confidence, 1e-5)
+        << "repeat " << r;
+  }
 }
 
 TEST(Localizer, ReportsShiftAndHomingAngleOfAShiftedQuery)
