@@ -38,6 +38,11 @@ public:
   const float* row(int age) const;
   /// The repeated_query flag given to appendRow for the row of that age.
   bool repeatedQuery(int age) const { return bands_[slot(age)].repeated_query; }
+  /// Whether the row of that age brings a new view into the window of the newest `rows` rows: it is not a
+  /// repeated query, or it is the window's oldest row (the view it repeats has left the window).
+  bool newView(int age, int rows) const { return !repeatedQuery(age) || age == rows - 1; }
+  /// The rows among the newest `rows` (at most size()) that bring a new view: the distinct views held.
+  int distinctViews(int rows) const;
 
   /// Cost of `keyframe` in the row of that age, or `missing` outside the row's band.
   float at(int age, int keyframe, float missing) const

@@ -49,6 +49,14 @@ void CostRingBuffer::resize(int rows, int max_width)
     newest_ = capacity_ - 1;  // next append lands in slot 0
 }
 
+int CostRingBuffer::distinctViews(int rows) const
+{
+  int distinct = 0;
+  for (int age = 0; age < rows; ++age)
+    distinct += newView(age, rows) ? 1 : 0;
+  return distinct;
+}
+
 void CostRingBuffer::clear()
 {
   size_ = 0;

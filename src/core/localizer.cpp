@@ -455,10 +455,8 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   };
   const int window_rows =
       params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : params_.ring_buffer_rows;
-  int distinct_rows = 0;
-  for (int age = 0; age < match.rows; ++age)
-    distinct_rows += ring_.repeatedQuery(age) && age != match.rows - 1 ? 0 : 1;
-  const double evidence = std::min(1.0, static_cast<double>(distinct_rows) / std::max(1, window_rows));
+  const double evidence =
+      std::min(1.0, static_cast<double>(ring_.distinctViews(match.rows)) / std::max(1, window_rows));
   result.confidence = confidenceFrom(match.has_second, match.second_cost, evidence);
   result.keyframe = match.keyframe;
 

@@ -240,7 +240,7 @@ void OnlineDtw::accumulateColumns(const CostRingBuffer& buffer, const Window& wi
     int distinct = 0;
     for (int age = 0; age < window.rows; ++age)
     {
-      if (buffer.repeatedQuery(age) && age != window.rows - 1)
+      if (!buffer.newView(age, window.rows))
         continue;
       ++distinct;
       const BandColumns band = bandColumns(buffer, age, lo, width);

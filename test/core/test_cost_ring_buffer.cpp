@@ -149,6 +149,11 @@ TEST(CostRingBuffer, RepeatedQueryFlagFollowsTheRowsThroughWrapAndResize)
     EXPECT_EQ(flags[4 - age], buffer.repeatedQuery(age)) << "age " << age;
     EXPECT_FLOAT_EQ(100.0f * (4 - age), buffer.row(age)[0]) << "age " << age;
   }
+  // Distinct views in the newest 3 / 2 / 1 rows (T F T, newest first): a flagged row adds none unless it
+  // is the window's oldest: 0 + 1 + 1 = 2; 0 + 1 = 1; the single row always counts: 1.
+  EXPECT_EQ(2, buffer.distinctViews(3));
+  EXPECT_EQ(1, buffer.distinctViews(2));
+  EXPECT_EQ(1, buffer.distinctViews(1));
 
   // Row 5 lands in the slot row 2 (T) used, with the default flag: false, not the stale true.
   // Ages: 0 = row 5 (F), 1 = row 4 (T), 2 = row 3 (F).
