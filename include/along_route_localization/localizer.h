@@ -137,6 +137,16 @@ struct LocalizationResult
 /// so the correction is a right turn: angle = -atan(d / f), with f = (width / 2) / tan(hfov / 2) px.
 double homingAngleFromShift(double shift_px, int image_width, double horizontal_fov_rad);
 
+/// Keyframes per frame of a DTW path (keyframe per row, oldest first) over its rows before the newest
+/// (the newest row's end is the least settled): the mean over those rows, or, when the robot changed
+/// speed lately, the speed over the last kRecentSpeedRows steps. "Changed" means that speed and the one
+/// over the steps before them (at least kRecentSpeedRows too) differ by at least kSpeedChange keyframes
+/// per frame: half or double speed, or a stop (a path moves 0, 1 or 2 keyframes per row; over 8 rows
+/// one extra stop or skip changes the speed by 0.125). 1 (the nominal speed) for fewer than three rows.
+double pathSpeed(const std::vector<int>& path);
+constexpr int kRecentSpeedRows = 8;
+constexpr double kSpeedChange = 0.5;
+
 /// The per-frame localizer. Not thread-safe: call from one thread (the nodelet's callback queue).
 class Localizer
 {
@@ -181,7 +191,7 @@ private:
   int firstComparedRow() const;
   /// The keyframe to report for a DTW match `dtw_keyframe` while tracking: inside a run of near-identical
   /// keyframes (the teach camera stood still, or saw nothing) the DTW cannot tell them apart, so the
-  /// answer moves through the run at the speed the path had when it entered (run_dead_reckoning).
+  /// answer moves through the run at the speed the path had when it entered (pathSpeed, run_dead_reckoning).
   int keyframeThroughRun(int dtw_keyframe);
 
   /// Appends the eq. 2 row of keyframes [first, first + width); `global`: a global search (coarse on big maps).

@@ -148,6 +148,20 @@ double homingAngleFromShift(double shift_px, int image_width, double horizontal_
   return -std::atan(shift_px / focal_px);
 }
 
+double pathSpeed(const std::vector<int>& path)
+{
+  const int last = static_cast<int>(path.size()) - 2;  // the row before the newest
+  if (last < 1)
+    return 1.0;
+  const double mean = static_cast<double>(path[last] - path[0]) / last;
+  const int split = last - kRecentSpeedRows;  // older rows [0, split], recent rows [split, last]
+  if (split < kRecentSpeedRows)
+    return mean;
+  const double older = static_cast<double>(path[split] - path[0]) / split;
+  const double recent = static_cast<double>(path[last] - path[split]) / kRecentSpeedRows;
+  return std::abs(recent - older) >= kSpeedChange ? recent : mean;
+}
+
 Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams& params) : map_(std::move(map))
 {
   if (!map_ || map_->empty())
@@ -297,13 +311,10 @@ int Localizer::keyframeThroughRun(int dtw_keyframe)
     run_position_ = std::min(static_cast<double>(last), run_position_ + run_velocity_);
     return static_cast<int>(std::lround(run_position_));
   }
-  // Entering the run: the path's mean speed over the rows before this frame (the robot most likely keeps
-  // it: a train stands at a station as long as the teach train did), from the keyframe after the last
-  // answer when that came from before the run.
-  const size_t rows = last_path_.size();
-  run_velocity_ =
-      rows >= 3 ? static_cast<double>(last_path_[rows - 2] - last_path_[0]) / static_cast<double>(rows - 2) : 1.0;
-  run_velocity_ = std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, run_velocity_));
+  // Entering the run: the path's speed before this frame (the robot most likely keeps it: a train stands
+  // at a station as long as the teach train did), from the keyframe after the last answer when that came
+  // from before the run.
+  run_velocity_ = std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, pathSpeed(last_path_)));
   run_position_ = last_match_ >= 0 && last_match_ < first ?
                       std::min(static_cast<double>(last), std::max<double>(first, last_match_ + run_velocity_)) :
                       dtw_keyframe;

@@ -352,6 +352,85 @@ TEST(Localizer, MovesThroughAStationAtTheSpeedItArrivedWith)
   }
 }
 
+TEST(Localizer, PathSpeedIsTheRecentSpeedAfterASpeedChange)
+{
+  // Rows before the newest are used (the newest row is the last element, ignored).
+  EXPECT_DOUBLE_EQ(1.0, arl::pathSpeed({}));
+  EXPECT_DOUBLE_EQ(1.0, arl::pathSpeed({ 7, 9 }));  // no row before the newest but one
+  EXPECT_DOUBLE_EQ(2.0, arl::pathSpeed({ 7, 9, 0 }));
+  std::vector<int> path;
+  for (int r = 0; r < 30; ++r)
+    path.push_back(100 + r);  // speed 1 throughout
+  EXPECT_DOUBLE_EQ(1.0, arl::pathSpeed(path));
+  // 20 rows at 1 keyframe per frame (100..119), 9 at 2 (121..137), then the newest row: the last 8 steps
+  // (121..137: speed 2) and the 20 before them (100..121: 21 / 20 = 1.05) differ by 0.95 >= 0.5: 2.
+  path.clear();
+  for (int r = 0; r < 20; ++r)
+    path.push_back(100 + r);
+  for (int r = 1; r <= 9; ++r)
+    path.push_back(119 + 2 * r);
+  path.push_back(0);
+  ASSERT_EQ(30u, path.size());
+  EXPECT_DOUBLE_EQ(2.0, arl::pathSpeed(path));
+  // Half speed lately: rows 0..19 at 1 (keyframes 0..19), then 8 steps of 0.5 (19 + r / 2: up to 23), then
+  // the newest. Last 8 steps: (23 - 19) / 8 = 0.5; the 19 before: 19 / 19 = 1; they differ by 0.5: 0.5.
+  path.clear();
+  for (int r = 0; r < 20; ++r)
+    path.push_back(r);
+  for (int r = 1; r <= 8; ++r)
+    path.push_back(19 + r / 2);
+  path.push_back(0);
+  ASSERT_EQ(29u, path.size());
+  EXPECT_DOUBLE_EQ(0.5, arl::pathSpeed(path));
+  // A 3-frame stop at rows 11..13 in a window at speed 1: the last 8 steps (speed 1) and the 20 before
+  // them (17 / 20 = 0.85) differ by 0.15 < 0.5, so the mean over all 28 steps holds: 25 / 28.
+  path.clear();
+  for (int r = 0; r < 30; ++r)
+    path.push_back(100 + r - std::min(3, std::max(0, r - 10)));
+  EXPECT_DOUBLE_EQ(25.0 / 28.0, arl::pathSpeed(path));
+  // Too few steps before the recent ones (7 < 8): the mean. Rows 0..7 at 1, then 8 steps at 2 (up to
+  // 23), then the newest: 23 / 15.
+  path.clear();
+  for (int r = 0; r < 8; ++r)
+    path.push_back(r);
+  for (int r = 1; r <= 8; ++r)
+    path.push_back(7 + 2 * r);
+  path.push_back(0);
+  EXPECT_DOUBLE_EQ(23.0 / 15.0, arl::pathSpeed(path));
+}
+
+TEST(Localizer, MovesThroughAStationAtTheSpeedItHadJustBeforeIt)
+{
+  // The robot drives at 1 keyframe per frame, speeds up to 2 for 10 frames and enters a station (a run of
+  // 20 copies of one view, keyframes 80..99) at that speed: inside it, frame f of the stand is at keyframe
+  // 80 + 2 f. The mean speed over the 30-row window (20 rows at 1, 10 at 2: 1.33) would be 2 keyframes
+  // behind after 3 frames.
+  auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
+  for (int k = 0; k < 140; ++k)
+    map->addKeyframe(randomFrame(2000 + (k >= 80 && k < 100 ? 80 : k)), 1000000000LL * k);
+  std::vector<int> truth;
+  for (int k = 0; k < 60; ++k)
+    truth.push_back(k);
+  for (int k = 60; k < 100; k += 2)
+    truth.push_back(k);  // 60..78 at speed 2, then the station 80..98
+  for (int k = 100; k < 130; ++k)
+    truth.push_back(k);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  int station_frames = 0, station_right = 0;
+  for (size_t q = 0; q < truth.size(); ++q)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, truth[q]));
+    if (truth[q] >= 80 && truth[q] < 100)
+    {
+      ++station_frames;
+      station_right +=
+          result.status == LocalizationStatus::kTracking && std::abs(result.keyframe - truth[q]) <= 1 ? 1 : 0;
+    }
+  }
+  EXPECT_EQ(10, station_frames);
+  EXPECT_EQ(10, station_right);
+}
+
 TEST(Localizer, SetParamsWithAnotherRingBufferSizeKeepsTracking)
 {
   const auto map = syntheticMap(60);
