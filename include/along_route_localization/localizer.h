@@ -141,11 +141,13 @@ double homingAngleFromShift(double shift_px, int image_width, double horizontal_
 /// (the newest row's end is the least settled): the mean over those rows, or, when the robot changed
 /// speed lately, the speed over the last kRecentSpeedRows steps. "Changed" means that speed and the one
 /// over the steps before them (at least kRecentSpeedRows too) differ by at least kSpeedChange keyframes
-/// per frame: half or double speed, or a stop (a path moves 0, 1 or 2 keyframes per row; over 8 rows
-/// one extra stop or skip changes the speed by 0.125). 1 (the nominal speed) for fewer than three rows.
+/// per frame. A robot stopping, halving or doubling its speed changes it by 0.5 or more; measured over 8
+/// rows, one stop or skip more or less moves a speed by 0.125, so 0.4 leaves room for that (0.3 already
+/// took the wobble of a path at constant speed for a change: Nordland aligned, frames 0-893, within one
+/// frame 0.938 -> 0.927). 1 (the nominal speed) for fewer than three rows.
 double pathSpeed(const std::vector<int>& path);
 constexpr int kRecentSpeedRows = 8;
-constexpr double kSpeedChange = 0.5;
+constexpr double kSpeedChange = 0.4;
 
 /// The per-frame localizer. Not thread-safe: call from one thread (the nodelet's callback queue).
 class Localizer

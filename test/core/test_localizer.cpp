@@ -363,7 +363,7 @@ TEST(Localizer, PathSpeedIsTheRecentSpeedAfterASpeedChange)
     path.push_back(100 + r);  // speed 1 throughout
   EXPECT_DOUBLE_EQ(1.0, arl::pathSpeed(path));
   // 20 rows at 1 keyframe per frame (100..119), 9 at 2 (121..137), then the newest row: the last 8 steps
-  // (121..137: speed 2) and the 20 before them (100..121: 21 / 20 = 1.05) differ by 0.95 >= 0.5: 2.
+  // (121..137: speed 2) and the 20 before them (100..121: 21 / 20 = 1.05) differ by 0.95 >= 0.4: 2.
   path.clear();
   for (int r = 0; r < 20; ++r)
     path.push_back(100 + r);
@@ -383,11 +383,25 @@ TEST(Localizer, PathSpeedIsTheRecentSpeedAfterASpeedChange)
   ASSERT_EQ(29u, path.size());
   EXPECT_DOUBLE_EQ(0.5, arl::pathSpeed(path));
   // A 3-frame stop at rows 11..13 in a window at speed 1: the last 8 steps (speed 1) and the 20 before
-  // them (17 / 20 = 0.85) differ by 0.15 < 0.5, so the mean over all 28 steps holds: 25 / 28.
+  // them (17 / 20 = 0.85) differ by 0.15 < 0.4, so the mean over all 28 steps holds: 25 / 28.
   path.clear();
   for (int r = 0; r < 30; ++r)
     path.push_back(100 + r - std::min(3, std::max(0, r - 10)));
   EXPECT_DOUBLE_EQ(25.0 / 28.0, arl::pathSpeed(path));
+  // As on Nordland at 2:1 spacing before a station: a burst at 2 keyframes per frame early in the window,
+  // then half speed. Steps 0..7 at 2 (0..16), 12 at 1 (..28), then 8 at 0.5 (28 + r / 2: ..32), then the
+  // newest. Last 8: 4 / 8 = 0.5; the 20 before: 28 / 20 = 1.4; 0.9 apart: 0.5 (the mean, 32 / 28 = 1.14,
+  // would cross a station more than twice as fast as the robot).
+  path.clear();
+  for (int r = 0; r <= 8; ++r)
+    path.push_back(2 * r);
+  for (int r = 1; r <= 12; ++r)
+    path.push_back(16 + r);
+  for (int r = 1; r <= 8; ++r)
+    path.push_back(28 + r / 2);
+  path.push_back(0);
+  ASSERT_EQ(30u, path.size());
+  EXPECT_DOUBLE_EQ(0.5, arl::pathSpeed(path));
   // Too few steps before the recent ones (7 < 8): the mean. Rows 0..7 at 1, then 8 steps at 2 (up to
   // 23), then the newest: 23 / 15.
   path.clear();
