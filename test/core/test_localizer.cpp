@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -303,13 +304,13 @@ TEST(Localizer, CoarseGlobalSearchAnswersWithTheFullResolutionShift)
   EXPECT_FALSE(arl::Localizer(map, params).coarseGlobalSearch());
 }
 
-// A route of 70 keyframes whose keyframes 30..39 all show keyframe 30's view: the teach robot stood
-// still there for 10 frames (a run, stationaryChange()).
-std::shared_ptr<arl::RouteMap> mapWithAStation()
+// A route of `keyframes` keyframes whose keyframes [station, station + length) all show keyframe
+// `station`'s view: the teach robot stood still there for `length` frames (a run, stationaryChange()).
+std::shared_ptr<arl::RouteMap> mapWithAStation(int keyframes = 70, int station = 30, int length = 10)
 {
   auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
-  for (int k = 0; k < 70; ++k)
-    map->addKeyframe(randomFrame(1000 + (k >= 30 && k < 40 ? 30 : k)), 1000000000LL * k);
+  for (int k = 0; k < keyframes; ++k)
+    map->addKeyframe(randomFrame(1000 + (k >= station && k < station + length ? station : k)), 1000000000LL * k);
   return map;
 }
 
@@ -352,64 +353,57 @@ TEST(Localizer, MovesThroughAStationAtTheSpeedItArrivedWith)
   }
 }
 
+// A DTW path starting at keyframe `start`, then for each (steps, speed) segment `steps` rows, row r of the
+// segment (r = 1..steps) at the segment's first keyframe + floor(r * speed).
+std::vector<int> pathOf(int start, const std::vector<std::pair<int, double>>& segments)
+{
+  std::vector<int> path{ start };
+  for (const auto& segment : segments)
+  {
+    const int from = path.back();
+    for (int r = 1; r <= segment.first; ++r)
+      path.push_back(from + static_cast<int>(std::floor(r * segment.second)));
+  }
+  return path;
+}
+
 TEST(Localizer, PathSpeedIsTheRecentSpeedAfterASpeedChange)
 {
   // Rows before the newest are used (the newest row is the last element, ignored).
   EXPECT_DOUBLE_EQ(1.0, arl::pathSpeed({}));
   EXPECT_DOUBLE_EQ(1.0, arl::pathSpeed({ 7, 9 }));  // no row before the newest but one
   EXPECT_DOUBLE_EQ(2.0, arl::pathSpeed({ 7, 9, 0 }));
-  std::vector<int> path;
-  for (int r = 0; r < 30; ++r)
-    path.push_back(100 + r);  // speed 1 throughout
-  EXPECT_DOUBLE_EQ(1.0, arl::pathSpeed(path));
+  EXPECT_DOUBLE_EQ(1.0, arl::pathSpeed(pathOf(100, { { 29, 1.0 } })));  // speed 1 throughout
   // 20 rows at 1 keyframe per frame (100..119), 9 at 2 (121..137), then the newest row: the last 8 steps
   // (121..137: speed 2) and the 20 before them (100..121: 21 / 20 = 1.05) differ by 0.95 >= 0.4: 2.
-  path.clear();
-  for (int r = 0; r < 20; ++r)
-    path.push_back(100 + r);
-  for (int r = 1; r <= 9; ++r)
-    path.push_back(119 + 2 * r);
+  std::vector<int> path = pathOf(100, { { 19, 1.0 }, { 9, 2.0 } });
   path.push_back(0);
   ASSERT_EQ(30u, path.size());
   EXPECT_DOUBLE_EQ(2.0, arl::pathSpeed(path));
   // Half speed lately: rows 0..19 at 1 (keyframes 0..19), then 8 steps of 0.5 (19 + r / 2: up to 23), then
   // the newest. Last 8 steps: (23 - 19) / 8 = 0.5; the 19 before: 19 / 19 = 1; they differ by 0.5: 0.5.
-  path.clear();
-  for (int r = 0; r < 20; ++r)
-    path.push_back(r);
-  for (int r = 1; r <= 8; ++r)
-    path.push_back(19 + r / 2);
+  path = pathOf(0, { { 19, 1.0 }, { 8, 0.5 } });
   path.push_back(0);
   ASSERT_EQ(29u, path.size());
   EXPECT_DOUBLE_EQ(0.5, arl::pathSpeed(path));
   // A 3-frame stop at rows 11..13 in a window at speed 1: the last 8 steps (speed 1) and the 20 before
   // them (17 / 20 = 0.85) differ by 0.15 < 0.4, so the mean over all 28 steps holds: 25 / 28.
-  path.clear();
-  for (int r = 0; r < 30; ++r)
-    path.push_back(100 + r - std::min(3, std::max(0, r - 10)));
+  path = pathOf(100, { { 10, 1.0 }, { 3, 0.0 }, { 16, 1.0 } });
+  ASSERT_EQ(30u, path.size());
   EXPECT_DOUBLE_EQ(25.0 / 28.0, arl::pathSpeed(path));
   // As on Nordland at 2:1 spacing before a station: a burst at 2 keyframes per frame early in the window,
   // then half speed. Steps 0..7 at 2 (0..16), 12 at 1 (..28), then 8 at 0.5 (28 + r / 2: ..32), then the
   // newest. Last 8: 4 / 8 = 0.5; the 20 before: 28 / 20 = 1.4; 0.9 apart: 0.5 (the mean, 32 / 28 = 1.14,
   // would cross a station more than twice as fast as the robot).
-  path.clear();
-  for (int r = 0; r <= 8; ++r)
-    path.push_back(2 * r);
-  for (int r = 1; r <= 12; ++r)
-    path.push_back(16 + r);
-  for (int r = 1; r <= 8; ++r)
-    path.push_back(28 + r / 2);
+  path = pathOf(0, { { 8, 2.0 }, { 12, 1.0 }, { 8, 0.5 } });
   path.push_back(0);
   ASSERT_EQ(30u, path.size());
   EXPECT_DOUBLE_EQ(0.5, arl::pathSpeed(path));
   // Too few steps before the recent ones (7 < 8): the mean. Rows 0..7 at 1, then 8 steps at 2 (up to
   // 23), then the newest: 23 / 15.
-  path.clear();
-  for (int r = 0; r < 8; ++r)
-    path.push_back(r);
-  for (int r = 1; r <= 8; ++r)
-    path.push_back(7 + 2 * r);
+  path = pathOf(0, { { 7, 1.0 }, { 8, 2.0 } });
   path.push_back(0);
+  ASSERT_EQ(17u, path.size());
   EXPECT_DOUBLE_EQ(23.0 / 15.0, arl::pathSpeed(path));
 }
 
@@ -419,9 +413,7 @@ TEST(Localizer, MovesThroughAStationAtTheSpeedItHadJustBeforeIt)
   // 20 copies of one view, keyframes 80..99) at that speed: inside it, frame f of the stand is at keyframe
   // 80 + 2 f. The mean speed over the 30-row window (20 rows at 1, 10 at 2: 1.33) would be 2 keyframes
   // behind after 3 frames.
-  auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
-  for (int k = 0; k < 140; ++k)
-    map->addKeyframe(randomFrame(2000 + (k >= 80 && k < 100 ? 80 : k)), 1000000000LL * k);
+  const auto map = mapWithAStation(140, 80, 20);
   std::vector<int> truth;
   for (int k = 0; k < 60; ++k)
     truth.push_back(k);
