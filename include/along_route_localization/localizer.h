@@ -100,6 +100,18 @@ struct LocalizerParams
   /// often than they lead it (after stations and tunnels crossed at the speed of arrival). On Nordland
   /// 10-20 gave the same results, 5 was too tight (README, Results).
   int max_jump_ahead = 15;
+  /// Motion prior on the new match while tracking (EndPrior): each candidate end pays this much cost per
+  /// row per keyframe away from where the robot is predicted to be, up to motion_prior_cap keyframes
+  /// (motionPrior has the prediction). The DTW's cheapest end wobbles where the views look alike (2:1
+  /// map spacing, stations): one keyframe off the prediction costs 0.02 per row, 0.6 over K = 30 rows,
+  /// against 0.85 for one skip. 0 = off. Chosen on Nordland frames 0-893 among 0.01 / 0.015 / 0.02 with
+  /// caps 2 / 3 / 5 (sum of the four scenarios' within-one shares 3.576 to 3.591, without the prior
+  /// 3.513); checked on frames 894-1787: 3.815 -> 3.889 (README, Results).
+  float motion_prior_weight = 0.02f;
+  /// Keyframes beyond which the motion prior's penalty stays flat, so stronger evidence can still move
+  /// the match further (a station crossed at another speed than taught leaves the answer behind). Not
+  /// applied while the query repeats the last view: a repeated view brings no evidence for a jump.
+  float motion_prior_cap = 3.0f;
   DtwParams dtw = localizerDtwDefaults();  ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
   int min_init_frames = 5;            ///< frames before the first global answer
@@ -195,6 +207,12 @@ private:
   /// keyframes (the teach camera stood still, or saw nothing) the DTW cannot tell them apart, so the
   /// answer moves through the run at the speed the path had when it entered (pathSpeed, run_dead_reckoning).
   int keyframeThroughRun(int dtw_keyframe);
+  /// The motion prior of the match while tracking: the robot is predicted at the last match plus the
+  /// speed of the last path (pathSpeed), or at the last match itself when the query repeats the last
+  /// view (the camera stood still) outside a run of identical keyframes. Inside such a run both teach and
+  /// repeat stood still, and the robot goes on through it at the speed it came. For a new view only once
+  /// the track has been followed for K frames (tracked_frames_); none (weight 0) before.
+  EndPrior motionPrior(bool repeated_query) const;
 
   /// Appends the eq. 2 row of keyframes [first, first + width); `global`: a global search (coarse on big maps).
   void computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query, bool global,
@@ -232,6 +250,7 @@ private:
 
   LocalizationStatus status_ = LocalizationStatus::kInitializing;
   int last_match_ = -1;
+  int tracked_frames_ = 0;               // frames answered since tracking last started
   GlobalConfirmation confirmation_;
   LossDetector loss_;
   uint64_t frames_ = 0;

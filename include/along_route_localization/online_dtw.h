@@ -25,6 +25,19 @@ struct SequenceMatch
   std::vector<int> path;      ///< keyframe per row, oldest first (filled by OnlineDtw only)
 };
 
+/// A motion model's prediction of the newest row's match, for OnlineDtw::match: the match is the end i
+/// minimizing cost(i) + weight * min(|i - center|, cap), cost(i) being the accumulated cost per row.
+/// A bounded penalty: within `cap` keyframes of the prediction it breaks near-ties between ends (a path
+/// at a station or in a stretch of look-alike views wobbling a few keyframes ahead or behind); further
+/// away it is a constant weight * cap, so evidence of a bigger jump (the robot crossed a station faster
+/// than it taught) still moves the match. weight 0: no prior (the cheapest end).
+struct EndPrior
+{
+  double center = 0.0;  ///< keyframe predicted (fractional)
+  float weight = 0.0f;  ///< cost per row per keyframe away from the prediction
+  float cap = std::numeric_limits<float>::infinity();  ///< keyframes beyond which the penalty stays flat
+};
+
 struct DtwParams
 {
   int max_step = 2;            ///< s: steps (1,0), (1,1) ... (1,s) keyframes per frame
@@ -59,7 +72,8 @@ struct DtwParams
 ///                                      F_{r-1}(i-k) + (k - 1) * sustained_skip_penalty )
 ///   S_r(i) = C_r(i) + min( min(M_{r-1}(i), F_{r-1}(i)) + first_stop_penalty, S_{r-1}(i) + stop_penalty )
 /// (C centred per keyframe over the rows that computed it when column_centering is set). The match is
-/// argmin_i min(M, S, F)_newest(i) over the candidate end keyframes [first_end, first_end + count).
+/// argmin_i min(M, S, F)_newest(i) over the candidate end keyframes [first_end, first_end + count), or,
+/// with an EndPrior, the end minimizing that cost plus the prior's penalty.
 /// Because the accumulation spans only the K rows held, a wrong stretch falls out of the window and
 /// the path recovers; because every candidate end is scored, the match may leave [last, last + s]
 /// (the Localizer, while tracking, limits how far it may jump: match's first_choice and last_choice).
@@ -81,9 +95,11 @@ public:
   /// second_cost and second_place_cost, so a cheaper path ending there shows as a margin of zero (the
   /// Localizer, while tracking, does not jump to another place: that is for its loss detection and
   /// global search).
+  /// prior: see EndPrior; it only chooses among the ends (SequenceMatch::cost stays the chosen end's
+  /// accumulated cost, so a cheaper end elsewhere still lowers the margins).
   SequenceMatch match(const CostRingBuffer& buffer, int first_end, int count, int rows,
                       bool backtrack = false, const int* keyframe_run = nullptr, int first_choice = 0,
-                      int last_choice = std::numeric_limits<int>::max());
+                      int last_choice = std::numeric_limits<int>::max(), const EndPrior& prior = EndPrior());
 
   /// Accumulated cost row of the last match() (per end keyframe, divided by rows), for display.
   const std::vector<float>& lastAccumulated() const { return last_row_; }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -63,6 +64,10 @@ std::string LocalizerParams::validate() const
     e << "coarse_search_keyframes must be >= 0 (0: never), got " << coarse_search_keyframes;
   else if (max_jump_ahead < 0 || max_jump_ahead > 1000000)
     e << "max_jump_ahead must be in [0, 1000000] keyframes, got " << max_jump_ahead;
+  else if (!(motion_prior_weight >= 0.0f && motion_prior_weight <= 10.0f))
+    e << "motion_prior_weight must be in [0, 10], got " << motion_prior_weight;
+  else if (!(motion_prior_cap >= 0.0f))
+    e << "motion_prior_cap must be >= 0 keyframes, got " << motion_prior_cap;
   else if (search_radius < 1)
     e << "search_radius must be >= 1 keyframe, got " << search_radius;
   else if (dtw.max_step < 1 || dtw.max_step > 16)
@@ -295,6 +300,7 @@ void Localizer::reset()
   last_path_.clear();
   entered_query_.release();
   run_position_ = -1.0;
+  tracked_frames_ = 0;
 }
 
 int Localizer::keyframeThroughRun(int dtw_keyframe)
@@ -319,6 +325,22 @@ int Localizer::keyframeThroughRun(int dtw_keyframe)
                       std::min(static_cast<double>(last), std::max<double>(first, last_match_ + run_velocity_)) :
                       dtw_keyframe;
   return static_cast<int>(std::lround(run_position_));
+}
+
+EndPrior Localizer::motionPrior(bool repeated_query) const
+{
+  EndPrior prior;
+  // A new view: the prediction rests on the path's speed, which is the track's own only once the window
+  // holds nothing older than the track (a track confirmed a few keyframes behind the robot would
+  // otherwise be held there: Localizer.LeavesTheRouteThenRelocalizes, 31 -> 44 frames to be right again).
+  if (!repeated_query && tracked_frames_ < params_.ring_buffer_rows)
+    return prior;
+  prior.weight = params_.motion_prior_weight;
+  const bool stood_still = repeated_query && run_first_[last_match_] == run_last_[last_match_];
+  const double speed = std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, pathSpeed(last_path_)));
+  prior.center = last_match_ + (stood_still ? 0.0 : speed);
+  prior.cap = repeated_query ? std::numeric_limits<float>::infinity() : params_.motion_prior_cap;
+  return prior;
 }
 
 void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query,
@@ -431,15 +453,17 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
     // so the loss detection and the global search take over if it persists.
     // (The range always holds `predicted`, last_match_ + 1 at most.)
     int first_choice = 0, last_choice = n - 1;
+    EndPrior prior;
     if (!global)
     {
       first_choice = last_match_ - params_.dtw.exclusion_radius;
       last_choice = last_match_ + params_.dtw.max_step + params_.max_jump_ahead;
+      prior = motionPrior(repeated_query);
     }
     // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
     // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
     match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, !global, keyframe_run_.data(), first_choice,
-                       last_choice);
+                       last_choice, prior);
   }
   last_path_ = match.path;
   // A window without evidence (featureless rows only, e.g. a tunnel longer than K frames) ties every
@@ -484,6 +508,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
         confirmation_.update(match.keyframe, confident, result.query_informative))
     {
       status_ = LocalizationStatus::kTracking;
+      tracked_frames_ = 0;
       confirmation_.clear();
       loss_.clear();
     }
@@ -496,6 +521,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   }
   if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
   {
+    ++tracked_frames_;
     last_match_ = match.keyframe;
     status_ = match.keyframe >= n - 1 - params_.end_of_route_keyframes ? LocalizationStatus::kEndOfRoute :
                                                                           LocalizationStatus::kTracking;

@@ -1,6 +1,7 @@
 #include "along_route_localization/online_dtw.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <limits>
@@ -289,7 +290,7 @@ void OnlineDtw::accumulateColumns(const CostRingBuffer& buffer, const Window& wi
 }
 
 SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int count, int rows, bool backtrack,
-                               const int* keyframe_run, int first_choice, int last_choice)
+                               const int* keyframe_run, int first_choice, int last_choice, const EndPrior& prior)
 {
   SequenceMatch result;
   Window window;
@@ -338,10 +339,21 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   const int choice_begin = std::min(count - 1, std::max(0, first_choice - first_end));
   const int choice_end = static_cast<int>(std::max<int64_t>(
       choice_begin + 1, std::min<int64_t>(count, static_cast<int64_t>(last_choice) - first_end + 1)));
-  const auto best_it = std::min_element(last_row_.begin() + choice_begin, last_row_.begin() + choice_end);
-  const int best = static_cast<int>(best_it - last_row_.begin());
+  int best = choice_begin;
+  float best_score = inf;
+  for (int i = choice_begin; i < choice_end; ++i)
+  {
+    float score = last_row_[i];
+    if (prior.weight > 0.0f)
+      score += prior.weight * std::min(static_cast<float>(std::abs(first_end + i - prior.center)), prior.cap);
+    if (score < best_score)
+    {
+      best_score = score;
+      best = i;
+    }
+  }
   result.keyframe = first_end + best;
-  result.cost = *best_it;
+  result.cost = last_row_[best];
   result.rows = num_rows;
   result.second_cost = inf;
   result.second_place_cost = inf;

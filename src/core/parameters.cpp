@@ -108,6 +108,8 @@ const std::map<std::string, Setter>& setters()
     { "search_radius", LOCALIZER_FIELD(int, search_radius) },
     { "coarse_search_keyframes", LOCALIZER_FIELD(int, coarse_search_keyframes) },
     { "max_jump_ahead", LOCALIZER_FIELD(int, max_jump_ahead) },
+    { "motion_prior_weight", LOCALIZER_FIELD(float, motion_prior_weight) },
+    { "motion_prior_cap", LOCALIZER_FIELD(float, motion_prior_cap) },
     { "run_dead_reckoning",
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->run_dead_reckoning); } },
     { "max_step", LOCALIZER_FIELD(int, dtw.max_step) },

@@ -148,7 +148,7 @@ LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh
   // params.yaml and localize_offline use (parameters.h), e.g. ~cost_function, ~min_texture_ratio.
   static const std::set<std::string> dynamic = { "method", "ring_buffer_rows", "max_step", "max_shift_px",
                                                  "contrast_window", "search_radius", "confidence_threshold",
-                                                 "stop_penalty", "skip_penalty", "horizontal_fov_deg",
+                                                 "stop_penalty", "skip_penalty", "motion_prior_weight", "horizontal_fov_deg",
                                                  "lost_after_frames", "lost_window_frames" };
   LocalizerParams params;
   PreprocessingParams ignored;  // the preprocessor's business

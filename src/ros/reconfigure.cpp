@@ -33,6 +33,7 @@ LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams params)
   params.confidence_threshold = config.confidence_threshold;
   params.dtw.stop_penalty = static_cast<float>(config.stop_penalty);
   params.dtw.skip_penalty = static_cast<float>(config.skip_penalty);
+  params.motion_prior_weight = static_cast<float>(config.motion_prior_weight);
   params.horizontal_fov_rad = config.horizontal_fov_deg * M_PI / 180.0;
   params.lost_after_frames = config.lost_after_frames;
   params.lost_window_frames = config.lost_window_frames;

@@ -961,3 +961,24 @@ TEST(Localizer, LeavesTheRouteThenRelocalizes)
   EXPECT_LE(frames, 40);  // measured 31: lost, then 9 frames tracking the wrong place
 }
 
+
+TEST(Localizer, MotionPriorKeepsTheAnswerMovingThroughAStationWhileTheCameraStandsStill)
+{
+  SKIP_WITHOUT_NORDLAND();
+  // Winter frames 1000..1199 over the summer stretch, frame for frame. At stretch frames 179..189 both
+  // trains stood at a station (the winter frames repeat the view): the ground truth moves on one
+  // keyframe per frame, and the repeated views say nothing about where along the stop the robot is.
+  std::vector<QueryFrame> queries;
+  appendStretch(&queries, 0, 200);
+  const auto rightInStation = [](const LostAndFound& run) {
+    return std::count(run.marks.begin() + 179, run.marks.begin() + 190, '.');
+  };
+  const long with_prior = rightInStation(runQueries(queries));
+  arl::LocalizerParams no_prior;
+  no_prior.motion_prior_weight = 0.0f;
+  const long without_prior = rightInStation(runQueries(queries, no_prior));
+  std::printf("station frames 179..189 right: %ld of 11 with the motion prior, %ld without\n", with_prior,
+              without_prior);
+  EXPECT_GE(with_prior, 10);             // measured 11
+  EXPECT_LT(without_prior, with_prior);  // measured 2
+}

@@ -1,5 +1,6 @@
 // Step 4 (online_dtw.h): accumulated cost, backtracked path and the match on hand-made cost matrices.
 #include <algorithm>
+#include <limits>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -578,4 +579,40 @@ TEST(OnlineDtw, SecondPlaceCostCountsRunsNotKeyframes)
   const arl::SequenceMatch narrow_match = narrow.match(buffer, 0, 10, 8, false, two_runs);
   EXPECT_TRUE(narrow_match.has_second_place);
   EXPECT_NEAR(3.0f / 8, narrow_match.second_place_cost, 1e-6);
+}
+
+TEST(OnlineDtw, EndPriorBreaksNearTiesButNotStrongEvidence)
+{
+  // The matrix of FirstChoiceLimitsTheMatchNotTheCompetition: A ends at 3 (cost 0 / 4), B at 20
+  // (0.5 / 4 = 0.125); the end 19 next to B costs 1 / 4 (17 18 19 19, the last row off B).
+  std::vector<std::vector<float>> matrix(4, std::vector<float>(30, 1.0f));
+  for (int r = 0; r < 4; ++r)
+  {
+    matrix[r][r] = 0.0f;
+    matrix[r][17 + r] = r == 3 ? 0.5f : 0.0f;
+  }
+  arl::CostRingBuffer buffer(4, 30);
+  appendRows(buffer, matrix);
+  arl::OnlineDtw dtw(handParams(5));
+  arl::EndPrior prior;
+  prior.center = 19.0;
+  prior.weight = 0.01f;
+  // Uncapped: A's end pays 0.01 * 16 = 0.16, B's 0.125 + 0.01 = 0.135, 19's 0.25 + 0: B's end.
+  arl::SequenceMatch match = dtw.match(buffer, 0, 30, 4, true, nullptr, 0, 29, prior);
+  EXPECT_EQ(20, match.keyframe);
+  EXPECT_NEAR(0.125f, match.cost, 1e-6);  // the end's own cost, without the prior
+  ASSERT_TRUE(match.has_second);
+  EXPECT_NEAR(0.0f, match.second_cost, 1e-6);  // A's cheaper end still competes: no margin
+  EXPECT_EQ((std::vector<int>{ 17, 18, 19, 20 }), match.path);
+  // Capped at 2 keyframes, A's end pays 0.02 < 0.135: evidence far from the prediction wins.
+  prior.cap = 2.0f;
+  EXPECT_EQ(3, dtw.match(buffer, 0, 30, 4, false, nullptr, 0, 29, prior).keyframe);
+  // Weight 0: no prior, the cheapest end.
+  prior.cap = std::numeric_limits<float>::infinity();
+  prior.weight = 0.0f;
+  EXPECT_EQ(3, dtw.match(buffer, 0, 30, 4, false, nullptr, 0, 29, prior).keyframe);
+  // Predicted at 10, the prior pays 0.07 for A's end and 0.1 for B's: A's (0.07 < 0.225).
+  prior.center = 10.0;
+  prior.weight = 0.01f;
+  EXPECT_EQ(3, dtw.match(buffer, 0, 30, 4, false, nullptr, 0, 29, prior).keyframe);
 }

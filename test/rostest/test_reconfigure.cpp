@@ -23,7 +23,7 @@ TEST(Reconfigure, LocalizerCfgDefaultsAreTheCoreDefaults)
   base.ring_buffer_rows = base.dtw.max_step = base.max_shift_px = base.contrast_window = base.search_radius =
       base.lost_after_frames = base.lost_window_frames = 999;
   base.confidence_threshold = base.horizontal_fov_rad = 0.999;
-  base.dtw.stop_penalty = base.dtw.skip_penalty = 999.0f;
+  base.dtw.stop_penalty = base.dtw.skip_penalty = base.motion_prior_weight = 999.0f;
   const arl::LocalizerParams cfg = arl::toParams(arl::LocalizerConfig::__getDefault__(), base);
   const arl::LocalizerParams core;
   EXPECT_EQ(arl::toString(core.method), arl::toString(cfg.method));
@@ -37,6 +37,7 @@ TEST(Reconfigure, LocalizerCfgDefaultsAreTheCoreDefaults)
   EXPECT_DOUBLE_EQ(core.confidence_threshold, cfg.confidence_threshold);
   EXPECT_FLOAT_EQ(core.dtw.stop_penalty, cfg.dtw.stop_penalty);
   EXPECT_FLOAT_EQ(core.dtw.skip_penalty, cfg.dtw.skip_penalty);
+  EXPECT_FLOAT_EQ(core.motion_prior_weight, cfg.motion_prior_weight);
   EXPECT_NEAR(core.horizontal_fov_rad, cfg.horizontal_fov_rad, 1e-6);
 }
 
