@@ -36,6 +36,7 @@ struct EndPrior
   double center = 0.0;  ///< keyframe predicted (fractional)
   float weight = 0.0f;  ///< cost per row per keyframe away from the prediction
   float cap = std::numeric_limits<float>::infinity();  ///< keyframes beyond which the penalty stays flat
+  bool ahead_only = false;  ///< only ends after the center pay (the robot cannot have moved on)
 };
 
 struct DtwParams

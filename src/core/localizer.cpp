@@ -340,6 +340,7 @@ EndPrior Localizer::motionPrior(bool repeated_query) const
   const double speed = std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, pathSpeed(last_path_)));
   prior.center = last_match_ + (stood_still ? 0.0 : speed);
   prior.cap = repeated_query ? std::numeric_limits<float>::infinity() : params_.motion_prior_cap;
+  prior.ahead_only = stood_still;
   return prior;
 }
 

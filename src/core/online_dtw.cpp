@@ -344,8 +344,9 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   for (int i = choice_begin; i < choice_end; ++i)
   {
     float score = last_row_[i];
-    if (prior.weight > 0.0f)
-      score += prior.weight * std::min(static_cast<float>(std::abs(first_end + i - prior.center)), prior.cap);
+    const double away = first_end + i - prior.center;
+    if (prior.weight > 0.0f && (away > 0.0 || !prior.ahead_only))
+      score += prior.weight * std::min(static_cast<float>(std::abs(away)), prior.cap);
     if (score < best_score)
     {
       best_score = score;

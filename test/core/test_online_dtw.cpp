@@ -604,6 +604,17 @@ TEST(OnlineDtw, EndPriorBreaksNearTiesButNotStrongEvidence)
   ASSERT_TRUE(match.has_second);
   EXPECT_NEAR(0.0f, match.second_cost, 1e-6);  // A's cheaper end still competes: no margin
   EXPECT_EQ((std::vector<int>{ 17, 18, 19, 20 }), match.path);
+  // Ahead only: A's end, behind the prediction, pays nothing and is the match again.
+  prior.ahead_only = true;
+  EXPECT_EQ(3, dtw.match(buffer, 0, 30, 4, false, nullptr, 0, 29, prior).keyframe);
+  // Ends ahead still pay. Predicted at 1 with weight 0.5: end 1 costs 0.575 (0 1 1 1: 2 + a second stop
+  // 0.3, over 4 rows) and pays nothing, end 2 0.25 (0 1 2 2) + 0.5, A's end 3 0 + 1, end 0 0.9 + 0.
+  prior.center = 1.0;
+  prior.weight = 0.5f;
+  EXPECT_EQ(1, dtw.match(buffer, 0, 30, 4, false, nullptr, 0, 29, prior).keyframe);
+  prior.center = 19.0;
+  prior.weight = 0.01f;
+  prior.ahead_only = false;
   // Capped at 2 keyframes, A's end pays 0.02 < 0.135: evidence far from the prediction wins.
   prior.cap = 2.0f;
   EXPECT_EQ(3, dtw.match(buffer, 0, 30, 4, false, nullptr, 0, 29, prior).keyframe);
