@@ -213,9 +213,12 @@ private:
   /// (the robot has not moved on, but a step back corrects an answer that ran on past the stop: the
   /// synthetic demo's stop, within one 0.970 with a symmetric prior, 0.978 so, 0.981 without a prior).
   /// Inside such a run both teach and repeat stood still, and the robot goes on through it at the speed
-  /// it came. For a new view only once
-  /// the track has been followed for K frames (tracked_frames_); none (weight 0) before.
+  /// it came. For a new view only once the track has been followed for K frames (tracked_frames_); none
+  /// (weight 0) before.
   EndPrior motionPrior(bool repeated_query) const;
+  /// The robot's speed along the map, keyframes per frame: pathSpeed of the last path, in [0, max_step].
+  /// Run dead reckoning and the motion prior both predict with it.
+  double trackSpeed() const;
 
   /// Appends the eq. 2 row of keyframes [first, first + width); `global`: a global search (coarse on big maps).
   void computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query, bool global,

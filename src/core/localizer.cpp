@@ -320,11 +320,16 @@ int Localizer::keyframeThroughRun(int dtw_keyframe)
   // Entering the run: the path's speed before this frame (the robot most likely keeps it: a train stands
   // at a station as long as the teach train did), from the keyframe after the last answer when that came
   // from before the run.
-  run_velocity_ = std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, pathSpeed(last_path_)));
+  run_velocity_ = trackSpeed();
   run_position_ = last_match_ >= 0 && last_match_ < first ?
                       std::min(static_cast<double>(last), std::max<double>(first, last_match_ + run_velocity_)) :
                       dtw_keyframe;
   return static_cast<int>(std::lround(run_position_));
+}
+
+double Localizer::trackSpeed() const
+{
+  return std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, pathSpeed(last_path_)));
 }
 
 EndPrior Localizer::motionPrior(bool repeated_query) const
@@ -337,8 +342,7 @@ EndPrior Localizer::motionPrior(bool repeated_query) const
     return prior;
   prior.weight = params_.motion_prior_weight;
   const bool stood_still = repeated_query && run_first_[last_match_] == run_last_[last_match_];
-  const double speed = std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, pathSpeed(last_path_)));
-  prior.center = last_match_ + (stood_still ? 0.0 : speed);
+  prior.center = last_match_ + (stood_still ? 0.0 : trackSpeed());
   prior.cap = repeated_query ? std::numeric_limits<float>::infinity() : params_.motion_prior_cap;
   prior.ahead_only = stood_still;
   return prior;

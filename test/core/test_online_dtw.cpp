@@ -58,6 +58,19 @@ arl::DtwParams handParams(int exclusion_radius)
   return params;
 }
 
+// 4 rows over 30 keyframes, ones elsewhere: path A = 0 1 2 3 (zeros) and path B = 17 18 19 20 (zeros, but
+// 0.5 in the newest row).
+std::vector<std::vector<float>> twoPaths()
+{
+  std::vector<std::vector<float>> matrix(4, std::vector<float>(30, 1.0f));
+  for (int r = 0; r < 4; ++r)
+  {
+    matrix[r][r] = 0.0f;
+    matrix[r][17 + r] = r == 3 ? 0.5f : 0.0f;
+  }
+  return matrix;
+}
+
 // 8 frames over 10 keyframes: 0 1 2 2 (stop) 3 5 7 (double speed) 8.
 const std::vector<int> kStopAndGo = { 0, 1, 2, 2, 3, 5, 7, 8 };
 
@@ -169,14 +182,8 @@ TEST(OnlineDtw, FirstChoiceLimitsTheMatchNotTheCompetition)
   // B = 17 18 19 20 (zeros, but 0.5 at row 3, total 0.5). Unrestricted the match is A's end, 3, with
   // B's end as the runner-up: 0.5 / 4. With first_choice 10 the match is B's end, 20 (0.5 / 4), and A's
   // cheaper end still competes: second_cost 0 / 4, i.e. no margin.
-  std::vector<std::vector<float>> matrix(4, std::vector<float>(30, 1.0f));
-  for (int r = 0; r < 4; ++r)
-  {
-    matrix[r][r] = 0.0f;
-    matrix[r][17 + r] = r == 3 ? 0.5f : 0.0f;
-  }
   arl::CostRingBuffer buffer(4, 30);
-  appendRows(buffer, matrix);
+  appendRows(buffer, twoPaths());
   arl::OnlineDtw dtw(handParams(5));
   const arl::SequenceMatch free_match = dtw.match(buffer, 0, 30, 4, true);
   EXPECT_EQ(3, free_match.keyframe);
@@ -583,16 +590,10 @@ TEST(OnlineDtw, SecondPlaceCostCountsRunsNotKeyframes)
 
 TEST(OnlineDtw, EndPriorBreaksNearTiesButNotStrongEvidence)
 {
-  // The matrix of FirstChoiceLimitsTheMatchNotTheCompetition: A ends at 3 (cost 0 / 4), B at 20
+  // twoPaths, as in FirstChoiceLimitsTheMatchNotTheCompetition: A ends at 3 (cost 0 / 4), B at 20
   // (0.5 / 4 = 0.125); the end 19 next to B costs 1 / 4 (17 18 19 19, the last row off B).
-  std::vector<std::vector<float>> matrix(4, std::vector<float>(30, 1.0f));
-  for (int r = 0; r < 4; ++r)
-  {
-    matrix[r][r] = 0.0f;
-    matrix[r][17 + r] = r == 3 ? 0.5f : 0.0f;
-  }
   arl::CostRingBuffer buffer(4, 30);
-  appendRows(buffer, matrix);
+  appendRows(buffer, twoPaths());
   arl::OnlineDtw dtw(handParams(5));
   arl::EndPrior prior;
   prior.center = 19.0;
