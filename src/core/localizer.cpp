@@ -485,9 +485,14 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   // margin by the share of the K rows the path has seen, counting distinct views only (a row of a
   // repeated query, the camera standing still, adds none): after a start or a loss, a margin over 5 rows
   // is a sixth of the evidence of a full window (with 16 000 route-like distractors in the map a wrong
-  // stretch confirmed at start-up otherwise looked as sure as a long track). Tracking and loss go by the
-  // unweighted confidence in the place (only other runs of keyframes compete), so a station where the
-  // map holds many copies of one view does not look like being lost, and initializing is not slowed.
+  // stretch confirmed at start-up otherwise looked as sure as a long track). Status decisions go by the
+  // confidence in the place (only other runs of keyframes compete), so a station where the map holds
+  // many copies of one view does not look like being lost. A global hypothesis is confirmed on that
+  // confidence weighed by the same evidence: after a few rows, or on copies of one view (a camera
+  // standing still), it must show a bigger margin or wait for more views (unweighted, 2:1 spacing
+  // confirmed a wrong place from 5 copies of its first view, and off the route a look-alike was
+  // confirmed: Localizer.LeavesTheRouteThenRelocalizes). The loss detection goes by the unweighted
+  // confidence: a long track is not lost because the camera stands still.
   const auto confidenceFrom = [&](bool has_reference, float reference_cost, double evidence) {
     const float reference = has_reference ? reference_cost : params_.dtw.missing_cost;
     const double margin = std::max(0.0f, reference - match.cost);
@@ -502,6 +507,8 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
 
   const bool confident =
       confidenceFrom(match.has_second_place, match.second_place_cost, 1.0) >= params_.confidence_threshold;
+  const bool confirmable = confidenceFrom(match.has_second_place, match.second_place_cost, evidence) >=
+                           params_.confidence_threshold;
   if (params_.method == SequenceMethod::kSeqSlam)
   {
     if (ring_.size() >= params_.min_init_frames)
@@ -510,7 +517,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   else if (!tracking)
   {
     if (ring_.size() >= params_.min_init_frames &&
-        confirmation_.update(match.keyframe, confident, result.query_informative))
+        confirmation_.update(match.keyframe, confirmable, result.query_informative))
     {
       status_ = LocalizationStatus::kTracking;
       tracked_frames_ = 0;

@@ -252,6 +252,46 @@ TEST(Localizer, ConfidenceWeighsTheMarginByTheRowsSeen)
   }
 }
 
+TEST(Localizer, ConfirmsAPlaceOnDistinctViewsNotOnCopiesOfOne)
+{
+  // The camera stands still at start-up: keyframe 10's own view, 15 times. Every global answer is
+  // keyframe 10 with a wide margin, but copies of one view are one view of evidence (1 / K): the place
+  // is not confirmed, however often it repeats (unweighted, it was tracking from the 9th copy). Then the
+  // robot drives on (keyframes 11, 12, ...): with each distinct view the evidence grows, and after
+  // init_confirm_frames consecutive confirmable answers it tracks the right keyframes.
+  const auto map = syntheticMap(60);
+  arl::LocalizerParams params;
+  params.ring_buffer_rows = 20;
+  arl::Localizer localizer(map, params);
+  for (int i = 0; i < 15; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, 10));
+    EXPECT_EQ(LocalizationStatus::kInitializing, result.status) << "copy " << i;
+    if (i >= params.min_init_frames - 1)
+    {
+      EXPECT_EQ(10, result.keyframe) << "copy " << i;
+    }
+  }
+  int first_tracking = -1;
+  for (int k = 11; k <= 30; ++k)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, k));
+    if (result.status != LocalizationStatus::kTracking)
+    {
+      EXPECT_LT(first_tracking, 0) << "keyframe " << k << ": lost after it was confirmed";
+      continue;
+    }
+    if (first_tracking < 0)
+      first_tracking = k;
+    EXPECT_EQ(k, result.keyframe);
+  }
+  std::printf("moving from keyframe 11: tracking from keyframe %d\n", first_tracking);
+  // At least init_confirm_frames answers after it moves; measured: from keyframe 17, the 7th (with one
+  // or two new views among the 20 rows the evidence is still too small for the margin to count).
+  EXPECT_GE(first_tracking, 11 + params.init_confirm_frames - 1);
+  EXPECT_LE(first_tracking, 11 + params.init_confirm_frames + 2);
+}
+
 TEST(Localizer, ReportsShiftAndHomingAngleOfAShiftedQuery)
 {
   // Queries are keyframes shifted right by 2 px: shift_px ~ +2 and, with hfov 1 rad
@@ -898,7 +938,9 @@ TEST(Localizer, StartsMidRouteAndLocalizesGlobally)
   const LostAndFound run = runQueries(queries);
   const int frames = run.framesToRelocalize(0);
   std::printf("mid-route start: right after %d frames\n", frames);
-  EXPECT_LE(frames, 10);  // measured 8: min_init_frames - 1 = 4 frames to the first answer, 4 to confirm it
+  // measured 10: min_init_frames - 1 = 4 frames to the first answer, then 6 until 5 consecutive answers
+  // were confirmable (the margin over the first 5 rows weighs 5 / K; 8 frames when it did not count)
+  EXPECT_LE(frames, 12);
 }
 
 TEST(Localizer, CoarseGlobalSearchStartsMidRouteLikeTheFullSizeOne)
@@ -915,7 +957,7 @@ TEST(Localizer, CoarseGlobalSearchStartsMidRouteLikeTheFullSizeOne)
   const LostAndFound coarse = runQueries(queries, params);
   const int frames = coarse.framesToRelocalize(0);
   std::printf("mid-route start, coarse global search: right after %d frames\n", frames);
-  EXPECT_LE(frames, 10);  // measured 8, as with the full-size search
+  EXPECT_LE(frames, 12);  // measured 10, as with the full-size search
   EXPECT_EQ(full.framesToRelocalize(0), frames);
   const long full_wrong = std::count(full.marks.begin(), full.marks.end(), 'x');
   const long coarse_wrong = std::count(coarse.marks.begin(), coarse.marks.end(), 'x');
@@ -932,7 +974,7 @@ TEST(Localizer, KidnappedRelocalizes)
   const int frames = run.framesToRelocalize(80);
   const long wrong = std::count(run.marks.begin() + 80, run.marks.end(), 'x');
   std::printf("kidnapped: right again after %d frames, %ld frames tracking the wrong place\n", frames, wrong);
-  EXPECT_LE(frames, 40);  // measured 38: 25 frames on the old track, 13 lost (relocalizing, confirming)
+  EXPECT_LE(frames, 45);  // measured 40: 25 frames on the old track, 15 lost (relocalizing, confirming)
   EXPECT_LE(wrong, 35);   // measured 25
 }
 
@@ -954,8 +996,9 @@ TEST(Localizer, LeavesTheRouteThenRelocalizes)
   // Off the route (frames 80..139) the localizer should say it does not know, not track some place.
   const long off_route_tracking = std::count(run.marks.begin() + 80, run.marks.begin() + 140, 'o');
   std::printf("off the route: %ld of 60 frames reported tracking\n", off_route_tracking);
-  EXPECT_LE(off_route_tracking, 40);  // measured 18 (11 before the first loss, 7 on a look-alike); 10
-                                      // consecutive low frames as the loss rule: 51
+  // measured 11, all before the first loss. 18 when a global answer was confirmed on the unweighted
+  // margin: a look-alike was then tracked for 7 frames. 10 consecutive low frames as the loss rule: 51.
+  EXPECT_LE(off_route_tracking, 15);
   const int frames = run.framesToRelocalize(140);
   std::printf("back on the route: right again after %d frames\n", frames);
   EXPECT_LE(frames, 40);  // measured 31: lost, then 9 frames tracking the wrong place
