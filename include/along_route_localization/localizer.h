@@ -116,7 +116,9 @@ struct LocalizerParams
   SeqSlamParams seqslam;              ///< baseline only
   int min_init_frames = 5;            ///< frames before the first global answer
   /// Consecutive informative frames whose global answer is confident and advances 0..max_step keyframes
-  /// per frame before tracking starts (GlobalConfirmation).
+  /// per frame before tracking starts (GlobalConfirmation). Confident here: the confidence in the place
+  /// weighed by the distinct views among the K rows, as the published confidence (Localizer::process), so
+  /// copies of one view (a camera standing still) or a few rows need a wider margin.
   int init_confirm_frames = 5;
   double confidence_threshold = 0.2;  ///< below it a frame counts as low-confidence
   /// Per-row cost margin that maps to confidence 1 - 1/e (over a full window of K rows; the reported
