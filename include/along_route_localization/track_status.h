@@ -43,7 +43,8 @@ public:
   LossDetector(int low_frames = 1, int window = 1) { configure(low_frames, window); }
   void configure(int low_frames, int window);  ///< clears the history
   void clear();
-  /// Returns true when the track is lost (then call clear()).
+  /// Returns true when the track is lost (then call clear()). informative = false: the frame is not
+  /// counted (the Localizer passes false for a featureless frame and for a copy of the last view).
   bool update(bool confident, bool informative);
   int lowFrames() const { return low_count_; }
 

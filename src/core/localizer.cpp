@@ -525,7 +525,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
       loss_.clear();
     }
   }
-  else if (loss_.update(confident, result.query_informative))
+  else if (loss_.update(confident, result.query_informative && !repeated_query))  // new views only
   {
     status_ = LocalizationStatus::kLost;
     ring_.clear();  // the rows behind a lost track describe the wrong place

@@ -638,6 +638,42 @@ TEST(Localizer, UnknownPlacesGetLostThenRelocalize)
   EXPECT_EQ(60, result.keyframe);
 }
 
+TEST(Localizer, StandingStillDoesNotMakeTheTrackLost)
+{
+  // Keyframes 30..39 are a station (one view S, the teach camera stood there) and so are 60..69 (another
+  // station that looks the same). The robot stands at the first one for 60 frames, twice the ring
+  // buffer: the window then holds copies of S only, which fit both stations equally (no confidence in
+  // the place). Copies of one view are no evidence of having left the place either (the LossDetector
+  // counts new views only): tracking goes on, and the answer is right when the robot drives on.
+  auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
+  const cv::Mat station = randomFrame(777);
+  for (int k = 0; k < 100; ++k)
+    map->addKeyframe((k >= 30 && k < 40) || (k >= 60 && k < 70) ? station : randomFrame(1000 + k),
+                     1000000000LL * k);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i < 30; ++i)
+    localizer.process(keyframeCopy(*map, i));
+  int tracking = 0;
+  double lowest_confidence = 1.0;
+  for (int f = 0; f < 60; ++f)
+  {
+    const arl::LocalizationResult r = localizer.process(station.clone());
+    tracking += r.status == LocalizationStatus::kTracking ? 1 : 0;
+    lowest_confidence = std::min(lowest_confidence, r.confidence);
+  }
+  std::printf("standing at the station: %d of 60 frames tracking, lowest confidence %.3f\n", tracking,
+              lowest_confidence);
+  EXPECT_LT(lowest_confidence, arl::LocalizerParams().confidence_threshold);  // and says it is unsure
+  EXPECT_EQ(60, tracking);
+  int right = 0;
+  for (int i = 40; i < 60; ++i)
+  {
+    const arl::LocalizationResult r = localizer.process(keyframeCopy(*map, i));
+    right += r.status == LocalizationStatus::kTracking && std::abs(r.keyframe - i) <= 1 ? 1 : 0;
+  }
+  EXPECT_GE(right, 18) << "of 20 frames after the station";
+}
+
 TEST(Localizer, LongTunnelDoesNotMakeTheTrackLost)
 {
   // Keyframes 20..79 are flat in the map (a tunnel: after normalization a dark frame is uniform 128)
