@@ -146,10 +146,13 @@ LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh
 {
   // Every core parameter not in Localizer.cfg can still be set once, under the same name that
   // params.yaml and localize_offline use (parameters.h), e.g. ~cost_function, ~min_texture_ratio.
-  static const std::set<std::string> dynamic = { "method", "ring_buffer_rows", "max_step", "max_shift_px",
-                                                 "contrast_window", "search_radius", "confidence_threshold",
-                                                 "stop_penalty", "skip_penalty", "motion_prior_weight", "horizontal_fov_deg",
-                                                 "lost_after_frames", "lost_window_frames" };
+  // Localizer.cfg's own parameters are dynamic_reconfigure's (onInit): read the list from it.
+  static const std::set<std::string> dynamic = [] {
+    std::set<std::string> names;
+    for (const auto& description : LocalizerConfig::__getParamDescriptions__())
+      names.insert(description->name);
+    return names;
+  }();
   LocalizerParams params;
   PreprocessingParams ignored;  // the preprocessor's business
   for (const std::string& name : parameterNames())
