@@ -9,10 +9,12 @@ namespace along_route_localization
 namespace
 {
 
-/// eq. 2 for one entry: (cost - mean) / max(std, min_std), clamped to [-clamp, clamp].
-float enhanced(double cost, double mean, double std, float min_std, float clamp)
+/// eq. 2 for one entry: (cost - mean) / max(std, min_std), clamped to [-clamp, clamp]; *peak becomes the
+/// larger of itself and the unclamped score's negative.
+float enhanced(double cost, double mean, double std, float min_std, float clamp, double* peak)
 {
   const double z = (cost - mean) / std::max(static_cast<double>(min_std), std);
+  *peak = std::max(*peak, -z);
   return static_cast<float>(std::min<double>(clamp, std::max<double>(-clamp, z)));
 }
 
@@ -45,26 +47,25 @@ void slidingWindowStatistics(int count, int half_window, Value value, Used used,
 
 }  // namespace
 
-void enhanceContrast(const float* costs, const uint8_t* informative, int count, int half_window, float min_std,
-                     float clamp, float neutral, float* out)
+float enhanceContrast(const float* costs, const uint8_t* informative, int count, int half_window, float min_std,
+                      float clamp, float neutral, float* out)
 {
+  double peak = 0.0;
   const auto used = [&](int i) { return informative == nullptr || informative[i] != 0; };
   slidingWindowStatistics(
       count, half_window, [&](int i) { return static_cast<double>(costs[i]); }, used,
       [&](int i, int n, double mean, double std) {
-        out[i] = (!used(i) || n < 2) ? neutral : enhanced(costs[i], mean, std, min_std, clamp);
+        out[i] = (!used(i) || n < 2) ? neutral : enhanced(costs[i], mean, std, min_std, clamp, &peak);
       });
+  return static_cast<float>(peak);
 }
 
-void enhanceContrastRuns(const float* costs, const uint8_t* informative, const uint8_t* repeats, int count,
-                         int half_window, float min_std, float clamp, float neutral, float* out,
-                         ContrastRunsScratch* scratch)
+float enhanceContrastRuns(const float* costs, const uint8_t* informative, const uint8_t* repeats, int count,
+                          int half_window, float min_std, float clamp, float neutral, float* out,
+                          ContrastRunsScratch* scratch)
 {
   if (repeats == nullptr)
-  {
-    enhanceContrast(costs, informative, count, half_window, min_std, clamp, neutral, out);
-    return;
-  }
+    return enhanceContrast(costs, informative, count, half_window, min_std, clamp, neutral, out);
   ContrastRunsScratch& s = *scratch;
   s.run_of.resize(count);
   s.run_cost.clear();
@@ -90,13 +91,22 @@ void enhanceContrastRuns(const float* costs, const uint8_t* informative, const u
         s.run_mean[r] = static_cast<float>(mean);
         s.run_std[r] = static_cast<float>(std);
       });
+  double peak = 0.0;
   for (int i = 0; i < count; ++i)
   {
     const int r = s.run_of[i];
     out[i] = ((informative != nullptr && !informative[i]) || s.run_n[r] < 2) ?
                  neutral :
-                 enhanced(costs[i], s.run_mean[r], s.run_std[r], min_std, clamp);
+                 enhanced(costs[i], s.run_mean[r], s.run_std[r], min_std, clamp, &peak);
   }
+  return static_cast<float>(peak);
+}
+
+float rowWeight(float peak, float reference, float range)
+{
+  if (!(range > 0.0f) || !(reference > 0.0f))
+    return 1.0f;
+  return std::min(1.0f + range, std::max(1.0f - range, peak / reference));
 }
 
 }  // namespace along_route_localization

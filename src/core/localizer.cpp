@@ -68,6 +68,10 @@ std::string LocalizerParams::validate() const
     e << "motion_prior_weight must be in [0, 10], got " << motion_prior_weight;
   else if (!(motion_prior_cap >= 0.0f))
     e << "motion_prior_cap must be >= 0 keyframes, got " << motion_prior_cap;
+  else if (!(row_weight_reference > 0.0f))
+    e << "row_weight_reference must be > 0, got " << row_weight_reference;
+  else if (!(row_weight_range >= 0.0f && row_weight_range < 1.0f))
+    e << "row_weight_range must be in [0, 1), got " << row_weight_range;
   else if (search_radius < 1)
     e << "search_radius must be >= 1 keyframe, got " << search_radius;
   else if (dtw.max_step < 1 || dtw.max_step > 16)
@@ -401,9 +405,18 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
   for (int k = 0; k < width; ++k)
     mask_[k] = query_informative && keyframe_informative_[first + k];
   float* row = ring_.appendRow(first, width, repeated_query);
-  enhanceContrastRuns(costs, mask_.data(), stationary_change_ > 0.0f ? keyframe_repeats_.data() + first : nullptr,
-                      width, params_.contrast_window, params_.contrast_min_std, params_.contrast_clamp, 0.0f, row,
-                      &contrast_scratch_);
+  const float peak = enhanceContrastRuns(
+      costs, mask_.data(), stationary_change_ > 0.0f ? keyframe_repeats_.data() + first : nullptr, width,
+      params_.contrast_window, params_.contrast_min_std, params_.contrast_clamp, 0.0f, row, &contrast_scratch_);
+  // Step 3a, an extension: a row whose best match stands out counts more (rowWeight). Only a tracking row, whose peak
+  // is over the band (2 * search_radius + 1 keyframes): over the whole map the largest of many scores
+  // stands out by chance, so a global search row weighs 1.
+  if (!global && query_informative)
+  {
+    const float weight = rowWeight(peak, params_.row_weight_reference, params_.row_weight_range);
+    for (int k = 0; k < width; ++k)
+      row[k] *= weight;
+  }
   newest_first_ = first;
   newest_width_ = width;
 }

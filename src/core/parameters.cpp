@@ -100,6 +100,8 @@ const std::map<std::string, Setter>& setters()
     { "contrast_window", LOCALIZER_FIELD(int, contrast_window) },
     { "contrast_min_std", LOCALIZER_FIELD(float, contrast_min_std) },
     { "contrast_clamp", LOCALIZER_FIELD(float, contrast_clamp) },
+    { "row_weight_reference", LOCALIZER_FIELD(float, row_weight_reference) },
+    { "row_weight_range", LOCALIZER_FIELD(float, row_weight_range) },
     { "min_texture_ratio", LOCALIZER_FIELD(float, min_texture_ratio) },
     { "stationary_ratio", LOCALIZER_FIELD(float, stationary_ratio) },
     { "first_stop_penalty", LOCALIZER_FIELD(float, dtw.first_stop_penalty) },

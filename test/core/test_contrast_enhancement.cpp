@@ -200,3 +200,38 @@ TEST(ContrastEnhancement, RunsOfRepeatedKeyframesCountOnce)
   for (int i = 0; i < 5; ++i)
     EXPECT_NEAR(plain[i], out[i], 1e-5) << i;
 }
+
+TEST(ContrastEnhancement, ReturnsHowFarTheBestEntryStandsOutBeforeTheClamp)
+{
+  // costs 3 3 3 1 3 3 3, one window over all (n = 10): mean 19/7, population variance 55/7 - 361/49 =
+  // 24/49, so the 1 scores (1 - 19/7) / (sqrt(24) / 7) = -12 / sqrt(24) = -sqrt(6): clamped to -2 in the
+  // output, the peak is sqrt(6).
+  const std::vector<float> dip = { 3, 3, 3, 1, 3, 3, 3 };
+  std::vector<float> out(7);
+  const float peak = arl::enhanceContrast(dip.data(), nullptr, 7, 10, 0.01f, 2.0f, 0.0f, out.data());
+  EXPECT_NEAR(std::sqrt(6.0), peak, 1e-5);
+  EXPECT_FLOAT_EQ(-2.0f, out[3]);
+  // The runs version, without repeats, returns the same.
+  arl::ContrastRunsScratch scratch;
+  const std::vector<uint8_t> none(7, 0);
+  EXPECT_NEAR(std::sqrt(6.0),
+              arl::enhanceContrastRuns(dip.data(), nullptr, none.data(), 7, 10, 0.01f, 2.0f, 0.0f, out.data(), &scratch),
+              1e-5);
+  // Only scores below the mean count: 1 1 1 3 1 1 1 has its largest score (+sqrt(6)) above it, and the
+  // ones score (1 - 9/7) / (sqrt(24) / 7) = -2 / sqrt(24), so the peak is 1 / sqrt(6).
+  const std::vector<float> bump = { 1, 1, 1, 3, 1, 1, 1 };
+  EXPECT_NEAR(1.0 / std::sqrt(6.0), arl::enhanceContrast(bump.data(), nullptr, 7, 10, 0.01f, 2.0f, 0.0f, out.data()),
+              1e-5);
+  // Uninformative entries are not scored: the dip masked out leaves a flat row, peak 0.
+  std::vector<uint8_t> informative(7, 1);
+  informative[3] = 0;
+  EXPECT_FLOAT_EQ(0.0f, arl::enhanceContrast(dip.data(), informative.data(), 7, 10, 0.01f, 2.0f, 0.0f, out.data()));
+}
+
+TEST(ContrastEnhancement, RowWeightIsThePeakOverTheReferenceWithinTheRange)
+{
+  EXPECT_FLOAT_EQ(1.1f, arl::rowWeight(2.475f, 2.25f, 0.2f));  // 2.475 / 2.25
+  EXPECT_FLOAT_EQ(0.8f, arl::rowWeight(0.5f, 2.25f, 0.2f));    // 0.22, raised to 1 - 0.2
+  EXPECT_FLOAT_EQ(1.2f, arl::rowWeight(9.0f, 2.25f, 0.2f));    // 4, lowered to 1 + 0.2
+  EXPECT_FLOAT_EQ(1.0f, arl::rowWeight(9.0f, 2.25f, 0.0f));    // range 0: every row weighs 1
+}
