@@ -141,7 +141,7 @@ TEST(Localizer, RejectsEmptyMapInvalidParamsAndBadFrames)
 TEST(LocalizerParams, ValidateNamesInvalidValues)
 {
   EXPECT_EQ("", arl::LocalizerParams().validate());
-  std::vector<arl::LocalizerParams> invalid(9);
+  std::vector<arl::LocalizerParams> invalid(12);
   invalid[0].ring_buffer_rows = 0;
   invalid[1].max_shift_px = -1;
   invalid[2].dtw.max_step = 0;
@@ -151,8 +151,12 @@ TEST(LocalizerParams, ValidateNamesInvalidValues)
   invalid[6].contrast_window = -1;
   invalid[7].coarse_search_keyframes = -1;
   invalid[8].max_jump_ahead = -1;
+  invalid[9].row_weight_range = 1.0f;  // a row weight of 0 would drop the row
+  invalid[10].row_weight_range = -0.1f;
+  invalid[11].row_weight_reference = 0.0f;
   for (size_t i = 0; i < invalid.size(); ++i)
     EXPECT_NE("", invalid[i].validate()) << "case " << i;
+  EXPECT_NE(std::string::npos, invalid[9].validate().find("row_weight_range")) << invalid[9].validate();
 
   for (auto method : { arl::SequenceMethod::kOnlineDtw, arl::SequenceMethod::kSeqSlam })
   {
