@@ -70,9 +70,9 @@ struct LocalizerParams
   int contrast_window = 10;           ///< n, eq. 2 half window, keyframes
   float contrast_min_std = 0.01f;     ///< floor of the eq. 2 std (cost units)
   float contrast_clamp = 2.0f;        ///< |enhanced cost| limit
-  /// Step 3a, rowWeight (an extension of the paper): while tracking, each row is weighed by clamp(peak / row_weight_reference,
-  /// 1 - row_weight_range, 1 + row_weight_range), the peak being how many standard deviations (eq. 2)
-  /// its best keyframe stands out. On Nordland the tracking rows' peaks have a median of 2.6 (10th-90th
+  /// Step 3a, rowWeight (an extension of the paper): while tracking, each row is weighed by
+  /// clamp(peak / row_weight_reference, 1 - row_weight_range, 1 + row_weight_range), the peak being how
+  /// many standard deviations (eq. 2) its best keyframe stands out. On Nordland the tracking rows' peaks have a median of 2.6 (10th-90th
   /// percentile 2.0-3.5); on 2:1 spacing 2.3 for queries halfway between two keyframes, 2.7 for the
   /// others. Range 0: every row weighs 1. Chosen on frames 0-893 among references 2 / 2.25 / 2.5 and
   /// ranges 0.1 / 0.2 / 0.3 / 0.4 (README, Results).

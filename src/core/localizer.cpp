@@ -408,9 +408,9 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
   const float peak = enhanceContrastRuns(
       costs, mask_.data(), stationary_change_ > 0.0f ? keyframe_repeats_.data() + first : nullptr, width,
       params_.contrast_window, params_.contrast_min_std, params_.contrast_clamp, 0.0f, row, &contrast_scratch_);
-  // Step 3a, an extension: a row whose best match stands out counts more (rowWeight). Only a tracking row, whose peak
-  // is over the band (2 * search_radius + 1 keyframes): over the whole map the largest of many scores
-  // stands out by chance, so a global search row weighs 1.
+  // Step 3a, an extension: a row whose best match stands out counts more (rowWeight). Only a tracking
+  // row, whose peak is over the band (2 * search_radius + 1 keyframes): over the whole map the largest of
+  // many scores stands out by chance, so a global search row weighs 1.
   if (!global && query_informative)
   {
     const float weight = rowWeight(peak, params_.row_weight_reference, params_.row_weight_range);
