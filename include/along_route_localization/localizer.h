@@ -120,6 +120,13 @@ struct LocalizerParams
   /// the match further (a station crossed at another speed than taught leaves the answer behind). Not
   /// applied while the query repeats the last view: a repeated view brings no evidence for a jump.
   float motion_prior_cap = 3.0f;
+  /// Frames over which the robot's cruise speed (keyframes per frame along the map) is averaged
+  /// (an exponential moving average of the tracked answer's steps, informative frames only). The DTW's
+  /// tie-break between speeds follows it (cruiseSpeedTieBreak): a robot that drives at half the speed it
+  /// taught, or a map taught with twice the frame spacing, is followed at half speed through views that
+  /// cannot tell speeds apart, instead of at one keyframe per frame. 0 = off (the nominal speed always).
+  /// Chosen on Nordland frames 0-893 among 50 / 100 / 150 / 200 (README, Results).
+  int cruise_speed_frames = 100;
   DtwParams dtw = localizerDtwDefaults();  ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
   int min_init_frames = 5;            ///< frames before the first global answer
@@ -197,6 +204,8 @@ public:
   /// Best path of the last frame, one keyframe per ring-buffer row, oldest first; empty after a frame
   /// that searched the whole map (initializing, lost).
   const std::vector<int>& lastPath() const { return last_path_; }
+  /// The robot's cruise speed in keyframes per frame (cruise_speed_frames): 1 until a track is followed.
+  double cruiseSpeed() const { return cruise_speed_; }
   /// Frames processed since construction or reset().
   uint64_t frameCount() const { return frames_; }
   /// Median textureEnergy of the map's keyframes, and the featureless threshold derived from it.
@@ -270,6 +279,7 @@ private:
   LocalizationStatus status_ = LocalizationStatus::kInitializing;
   int last_match_ = -1;
   int tracked_frames_ = 0;               // frames answered since tracking last started
+  double cruise_speed_ = 1.0;            // keyframes per frame, averaged over cruise_speed_frames
   GlobalConfirmation confirmation_;
   LossDetector loss_;
   uint64_t frames_ = 0;

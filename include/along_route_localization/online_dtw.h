@@ -50,6 +50,10 @@ struct DtwParams
   /// nominal speed (one keyframe per frame), e.g. through a station where map and query both hold one
   /// view and every speed fits equally well. The Localizer uses 0.05 (localizerDtwDefaults).
   float first_stop_penalty = 0.0f;
+  /// Cost of a (1,1) move right after a move or a skip (0: free). With first_stop_penalty it sets which
+  /// speed wins where the views cannot tell speeds apart: cruiseSpeedTieBreak trades one for the other
+  /// for a robot that drives slower than it taught.
+  float move_penalty = 0.0f;
   float skip_penalty = 1.0f;   ///< added per keyframe skipped beyond one, for (1,k), k >= 2, speeding up
   /// As skip_penalty, for a (1,k), k >= 2, that follows another such step: a robot that keeps driving
   /// faster than it taught pays on speeding up only when this is 0. Equal to skip_penalty, every skip
@@ -66,9 +70,19 @@ struct DtwParams
   bool column_centering = true;
 };
 
+/// The step costs for a robot that cruises at `cruise_speed` keyframes per frame (its long-run speed along
+/// the map), from `params` set for the nominal speed of one keyframe per frame: the tie-break
+/// first_stop_penalty is shared between a stop after a move (a share a) and a move after a move (1 - a),
+/// a = clamp((cruise_speed - 0.5) / 0.5, 0, 1). At 1 keyframe per frame or faster that is `params`
+/// itself; at half speed (a map taught with twice the frame spacing, or a robot driving at half its
+/// teach speed) alternating stops and moves is free and straight moves pay instead, so through views that
+/// cannot tell speeds apart (a dark stretch, a station) the path goes on at the robot's speed, not at
+/// the nominal one. Every other field is kept.
+DtwParams cruiseSpeedTieBreak(const DtwParams& params, double cruise_speed);
+
 /// Accumulated cost, row by row from the oldest row in the buffer to the newest, in three states per
 /// keyframe: M (the last step was (1,1)), F (the last step skipped: (1,k), k >= 2) and S (a stop):
-///   M_r(i) = C_r(i) + min( M_{r-1}(i-1), S_{r-1}(i-1), F_{r-1}(i-1) )
+///   M_r(i) = C_r(i) + min( M_{r-1}(i-1) + move_penalty, S_{r-1}(i-1), F_{r-1}(i-1) + move_penalty )
 ///   F_r(i) = C_r(i) + min_{k=2..s} min( min(M_{r-1}(i-k), S_{r-1}(i-k)) + (k - 1) * skip_penalty,
 ///                                      F_{r-1}(i-k) + (k - 1) * sustained_skip_penalty )
 ///   S_r(i) = C_r(i) + min( min(M_{r-1}(i), F_{r-1}(i)) + first_stop_penalty, S_{r-1}(i) + stop_penalty )

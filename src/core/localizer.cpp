@@ -72,6 +72,8 @@ std::string LocalizerParams::validate() const
     e << "row_weight_reference must be > 0, got " << row_weight_reference;
   else if (!(row_weight_range >= 0.0f && row_weight_range < 1.0f))
     e << "row_weight_range must be in [0, 1), got " << row_weight_range;
+  else if (cruise_speed_frames < 0 || cruise_speed_frames > 1000000)
+    e << "cruise_speed_frames must be in [0, 1000000] (0: off), got " << cruise_speed_frames;
   else if (search_radius < 1)
     e << "search_radius must be >= 1 keyframe, got " << search_radius;
   else if (dtw.max_step < 1 || dtw.max_step > 16)
@@ -305,6 +307,7 @@ void Localizer::reset()
   entered_query_.release();
   run_position_ = -1.0;
   tracked_frames_ = 0;
+  cruise_speed_ = 1.0;
 }
 
 int Localizer::keyframeThroughRun(int dtw_keyframe)
@@ -478,6 +481,8 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
       last_choice = last_match_ + params_.dtw.max_step + params_.max_jump_ahead;
       prior = motionPrior(repeated_query);
     }
+    if (params_.cruise_speed_frames > 0)
+      dtw_.setParams(cruiseSpeedTieBreak(params_.dtw, cruise_speed_));
     // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
     // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
     match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, !global, keyframe_run_.data(), first_choice,
@@ -546,6 +551,13 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   }
   if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
   {
+    // The cruise speed: the steps of a track followed from one informative frame to the next (a
+    // relocalization's jump is not a step; a featureless frame's answer is dead reckoning).
+    if (tracking && result.query_informative && params_.cruise_speed_frames > 0)
+    {
+      const double step = std::min(std::max(match.keyframe - last_match_, 0), params_.dtw.max_step);
+      cruise_speed_ += (step - cruise_speed_) / params_.cruise_speed_frames;
+    }
     ++tracked_frames_;
     last_match_ = match.keyframe;
     status_ = match.keyframe >= n - 1 - params_.end_of_route_keyframes ? LocalizationStatus::kEndOfRoute :

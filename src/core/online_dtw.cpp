@@ -83,6 +83,7 @@ void updateColumns(const DtwParams& params, const float* __restrict prev_move, c
   const int s = S > 0 ? S : steps;
   const float inf = std::numeric_limits<float>::infinity();
   const float stop_penalty = params.stop_penalty, first_stop_penalty = params.first_stop_penalty;
+  const float move_penalty = params.move_penalty;
   float speed_up[17], keep_fast[17];
   for (int k = 2; k <= s; ++k)
   {
@@ -101,16 +102,16 @@ void updateColumns(const DtwParams& params, const float* __restrict prev_move, c
     from_stop = stop_after_stop < best_stop ? kFromStop : from_stop;
     best_stop = stop_after_stop < best_stop ? stop_after_stop : best_stop;
     cur_stop[j] = cost[j] + best_stop;
-    // M: (1,1) from any state, free.
+    // M: (1,1), free after a stop, move_penalty after a move or a skip.
     float best_move = inf;
     int from_move = kFromMove;
     if (S > 0 || s >= 1)  // always, but in column 0 (updated alone, with s = j = 0)
     {
-      best_move = prev_move[j - 1];
+      best_move = prev_move[j - 1] + move_penalty;
       const float move_after_stop = prev_stop[j - 1];
       from_move = move_after_stop < best_move ? kFromStop : from_move;
       best_move = move_after_stop < best_move ? move_after_stop : best_move;
-      const float move_after_fast = prev_fast[j - 1];
+      const float move_after_fast = prev_fast[j - 1] + move_penalty;
       from_move = move_after_fast < best_move ? kFromFast : from_move;
       best_move = move_after_fast < best_move ? move_after_fast : best_move;
     }
@@ -196,6 +197,15 @@ void updateRow(const DtwParams& params, const StateRows& rows, const float* cost
 }
 
 }  // namespace
+
+DtwParams cruiseSpeedTieBreak(const DtwParams& params, double cruise_speed)
+{
+  const double a = std::min(1.0, std::max(0.0, (cruise_speed - 0.5) / 0.5));
+  DtwParams out = params;
+  out.first_stop_penalty = static_cast<float>(a * params.first_stop_penalty);
+  out.move_penalty = static_cast<float>((1.0 - a) * params.first_stop_penalty);
+  return out;
+}
 
 OnlineDtw::OnlineDtw(const DtwParams& params)
 {

@@ -110,6 +110,7 @@ const std::map<std::string, Setter>& setters()
     { "search_radius", LOCALIZER_FIELD(int, search_radius) },
     { "coarse_search_keyframes", LOCALIZER_FIELD(int, coarse_search_keyframes) },
     { "max_jump_ahead", LOCALIZER_FIELD(int, max_jump_ahead) },
+    { "cruise_speed_frames", LOCALIZER_FIELD(int, cruise_speed_frames) },
     { "motion_prior_weight", LOCALIZER_FIELD(float, motion_prior_weight) },
     { "motion_prior_cap", LOCALIZER_FIELD(float, motion_prior_cap) },
     { "run_dead_reckoning",

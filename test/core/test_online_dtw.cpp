@@ -438,6 +438,68 @@ TEST(OnlineDtw, FirstStopPenaltyBreaksTiesTowardsNominalSpeed)
     EXPECT_EQ(r, match.path[r]) << "row " << r;
 }
 
+TEST(OnlineDtw, CruiseSpeedTieBreakSharesTheFirstStopPenaltyWithStraightMoves)
+{
+  arl::DtwParams nominal = handParams(1);
+  nominal.first_stop_penalty = 0.05f;
+  for (const double speed : { 1.0, 1.7 })
+  {
+    const arl::DtwParams same = arl::cruiseSpeedTieBreak(nominal, speed);
+    EXPECT_FLOAT_EQ(0.05f, same.first_stop_penalty) << speed;
+    EXPECT_FLOAT_EQ(0.0f, same.move_penalty) << speed;
+  }
+  const arl::DtwParams between = arl::cruiseSpeedTieBreak(nominal, 0.75);  // a = 0.5
+  EXPECT_FLOAT_EQ(0.025f, between.first_stop_penalty);
+  EXPECT_FLOAT_EQ(0.025f, between.move_penalty);
+  for (const double speed : { 0.5, 0.2, 0.0 })
+  {
+    const arl::DtwParams half = arl::cruiseSpeedTieBreak(nominal, speed);
+    EXPECT_FLOAT_EQ(0.0f, half.first_stop_penalty) << speed;
+    EXPECT_FLOAT_EQ(0.05f, half.move_penalty) << speed;
+    EXPECT_FLOAT_EQ(nominal.stop_penalty, half.stop_penalty);
+    EXPECT_FLOAT_EQ(nominal.skip_penalty, half.skip_penalty);
+  }
+}
+
+TEST(OnlineDtw, AtHalfCruiseSpeedTheTieGoesToTheStopThatAlternatesWithMoves)
+{
+  // The matrix of FirstStopPenaltyBreaksTiesTowardsNominalSpeed (a station: rows 1-3 fit two consecutive
+  // keyframes each), with skips at 1 so that only stops and moves compete, and the step costs of
+  // cruiseSpeedTieBreak(first_stop_penalty 0.05, cruise speed 0.5): a stop after a move is free, a (1,1)
+  // after a (1,1) pays 0.05 (the oldest row starts as a move). stop 0.3.
+  //   A_3(3) = 0.15: 0 1 2 3, three moves after moves (0 0 1 3 would skip: 1).
+  //   A_3(2) = 0.05: 0 0 1 2 (free stop, free move after a stop, then a move after a move) or 0 1 1 2.
+  //   A_3(1) = 1: 0 0 1 1 (all steps free, the 1 at (3, 1)).
+  //   A_3(0) = 2.6: 0 0 0 0 (ones at rows 2 and 3, the second and third stops 0.3 each).
+  // -> end 2, half a keyframe per frame; at the nominal speed's costs the same matrix ends at 3.
+  std::vector<std::vector<float>> matrix(4, std::vector<float>(6, 1.0f));
+  matrix[0][0] = 0.0f;
+  matrix[1][0] = matrix[1][1] = 0.0f;
+  matrix[2][1] = matrix[2][2] = 0.0f;
+  matrix[3][2] = matrix[3][3] = 0.0f;
+  arl::CostRingBuffer buffer(4, 6);
+  appendRows(buffer, matrix);
+  arl::DtwParams nominal = handParams(1);
+  nominal.first_stop_penalty = 0.05f;
+  nominal.skip_penalty = nominal.sustained_skip_penalty = 1.0f;
+
+  arl::OnlineDtw half(arl::cruiseSpeedTieBreak(nominal, 0.5));
+  const arl::SequenceMatch match = half.match(buffer, 0, 6, 4, true);
+  const std::vector<float>& row = half.lastAccumulated();
+  ASSERT_EQ(6u, row.size());
+  EXPECT_NEAR(0.15f / 4, row[3], 1e-6);
+  EXPECT_NEAR(0.05f / 4, row[2], 1e-6);
+  EXPECT_NEAR(1.0f / 4, row[1], 1e-6);
+  EXPECT_NEAR(2.6f / 4, row[0], 1e-6);
+  EXPECT_EQ(2, match.keyframe);
+  ASSERT_EQ(4u, match.path.size());
+  EXPECT_EQ(2, match.path[3]);
+  EXPECT_EQ(1, match.path[2]);
+
+  arl::OnlineDtw full(arl::cruiseSpeedTieBreak(nominal, 1.0));
+  EXPECT_EQ(3, full.match(buffer, 0, 6, 4).keyframe);
+}
+
 TEST(OnlineDtw, RepeatedRowsAreLeftOutOfTheColumnMean)
 {
   // stop 0.3, skip 0.05, column centering on.
