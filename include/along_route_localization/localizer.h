@@ -129,6 +129,11 @@ struct LocalizerParams
   int cruise_speed_frames = 100;
   DtwParams dtw = localizerDtwDefaults();  ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
+  /// When the track is lost, the global search starts from the last relocalization_rows queries, compared
+  /// again with the whole map, instead of an empty window: they are frames the robot has seen, and the
+  /// loss was judged on them (lost_window_frames). The rows of the lost track are dropped: they covered
+  /// only its band. 0 = start from an empty window. At most K - 1 are used.
+  int relocalization_rows = 8;
   int min_init_frames = 5;            ///< frames before the first global answer
   /// Consecutive informative frames whose global answer is confident and advances 0..max_step keyframes
   /// per frame before tracking starts (GlobalConfirmation). Confident here: the confidence in the place
@@ -285,6 +290,16 @@ private:
   uint64_t frames_ = 0;
   std::vector<int> last_path_;
   cv::Mat entered_query_;                  // the last query that entered the ring buffer (empty: none)
+  /// The last relocalization_rows queries, oldest first from `next` (a ring), with what computeRow needs.
+  struct RecentQuery
+  {
+    std::vector<uint8_t> image;
+    float energy = 0.0f;
+    bool informative = false, repeated = false;
+  };
+  std::vector<RecentQuery> recent_queries_;
+  int recent_count_ = 0, recent_next_ = 0;
+  bool relocalize_from_recent_ = false;  // set on a loss: the next global search replays recent_queries_
 };
 
 }  // namespace along_route_localization

@@ -74,6 +74,8 @@ std::string LocalizerParams::validate() const
     e << "row_weight_range must be in [0, 1), got " << row_weight_range;
   else if (cruise_speed_frames < 0 || cruise_speed_frames > 1000000)
     e << "cruise_speed_frames must be in [0, 1000000] (0: off), got " << cruise_speed_frames;
+  else if (relocalization_rows < 0 || relocalization_rows > 1000)
+    e << "relocalization_rows must be in [0, 1000] frames, got " << relocalization_rows;
   else if (search_radius < 1)
     e << "search_radius must be >= 1 keyframe, got " << search_radius;
   else if (dtw.max_step < 1 || dtw.max_step > 16)
@@ -255,6 +257,13 @@ void Localizer::setParams(const LocalizerParams& params)
   for (int k = n - 2; k >= 0; --k)
     run_last_[k] = keyframe_run_[k] == keyframe_run_[k + 1] ? run_last_[k + 1] : k;
   run_position_ = -1.0;
+  if (static_cast<int>(recent_queries_.size()) != params_.relocalization_rows)
+  {
+    recent_queries_.assign(params_.relocalization_rows, RecentQuery());
+    for (RecentQuery& recent : recent_queries_)
+      recent.image.resize(map_->keyframeBytes());
+    recent_count_ = recent_next_ = 0;
+  }
   if (comparators_changed)
     rebuildComparators();
 }
@@ -308,6 +317,8 @@ void Localizer::reset()
   run_position_ = -1.0;
   tracked_frames_ = 0;
   cruise_speed_ = 1.0;
+  recent_count_ = recent_next_ = 0;
+  relocalize_from_recent_ = false;
 }
 
 int Localizer::keyframeThroughRun(int dtw_keyframe)
@@ -460,7 +471,30 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
     first = std::max(0, predicted - params_.search_radius);
     width = std::min(n, predicted + params_.search_radius + 1) - first;
   }
+  if (relocalize_from_recent_ && global)
+  {
+    // The first global search after a loss: the frames before this one, over the whole map.
+    // (At most K - 1 of them: the window holds K rows with this frame's.)
+    const int capacity = static_cast<int>(recent_queries_.size());
+    const int replayed = std::min(recent_count_, params_.ring_buffer_rows - 1);
+    for (int i = recent_count_ - replayed; i < recent_count_; ++i)
+    {
+      const RecentQuery& recent = recent_queries_[(recent_next_ - recent_count_ + i + capacity) % capacity];
+      computeRow(recent.image.data(), recent.energy, recent.informative, recent.repeated, true, 0, n);
+    }
+  }
+  relocalize_from_recent_ = false;
   computeRow(query, query_energy, result.query_informative, repeated_query, global, first, width);
+  if (!recent_queries_.empty())
+  {
+    RecentQuery& recent = recent_queries_[recent_next_];
+    std::copy(query, query + map_->keyframeBytes(), recent.image.begin());
+    recent.energy = query_energy;
+    recent.informative = result.query_informative;
+    recent.repeated = repeated_query;
+    recent_next_ = (recent_next_ + 1) % static_cast<int>(recent_queries_.size());
+    recent_count_ = std::min(recent_count_ + 1, static_cast<int>(recent_queries_.size()));
+  }
   cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
 
   SequenceMatch match;
@@ -546,7 +580,8 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   else if (loss_.update(confident, result.query_informative && !repeated_query))  // new views only
   {
     status_ = LocalizationStatus::kLost;
-    ring_.clear();  // the rows behind a lost track describe the wrong place
+    ring_.clear();  // the rows of a lost track cover only its band
+    relocalize_from_recent_ = true;
     loss_.clear();
   }
   if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)

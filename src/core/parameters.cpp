@@ -111,6 +111,7 @@ const std::map<std::string, Setter>& setters()
     { "coarse_search_keyframes", LOCALIZER_FIELD(int, coarse_search_keyframes) },
     { "max_jump_ahead", LOCALIZER_FIELD(int, max_jump_ahead) },
     { "cruise_speed_frames", LOCALIZER_FIELD(int, cruise_speed_frames) },
+    { "relocalization_rows", LOCALIZER_FIELD(int, relocalization_rows) },
     { "motion_prior_weight", LOCALIZER_FIELD(float, motion_prior_weight) },
     { "motion_prior_cap", LOCALIZER_FIELD(float, motion_prior_cap) },
     { "run_dead_reckoning",

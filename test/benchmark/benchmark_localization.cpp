@@ -8,6 +8,7 @@
 //
 // Names carry the map size as "keyframes:N" so that the script can pair figures of one run.
 #include <algorithm>
+#include <chrono>
 #include <climits>
 #include <cmath>
 #include <cstdint>
@@ -522,6 +523,54 @@ void mapSizeCoarseArgs(benchmark::internal::Benchmark* b)
       b->Args({ n, coarse });
 }
 BENCHMARK(BM_GlobalRelocalization)->Apply(mapSizeCoarseArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+// The first frame after a loss: with relocalization_rows = 8 it computes the whole-map rows of the 8
+// frames before it as well as its own (Localizer::process), with 0 only its own. Per iteration, untimed:
+// track 40 frames of the route, then show frames of nowhere (random views, normalized) until the track
+// is lost. Timed: the next frame, back on the route. Global searches coarse where the localizer's
+// default says (coarse_search_keyframes 4096).
+void BM_FirstFrameAfterALoss(benchmark::State& state)
+{
+  const int n = static_cast<int>(state.range(0));
+  const auto map = routeMap(n);
+  arl::LocalizerParams params = benchmarkLocalizerParams();
+  params.relocalization_rows = static_cast<int>(state.range(1));
+  arl::Localizer localizer(map, params);
+  QueryStream stream(kStartKeyframe);
+  cv::RNG rng(kSeed);
+  cv::Mat query(kHeight, kWidth, CV_8UC1), nowhere(kHeight, kWidth, CV_8UC1);
+  int not_lost = 0;
+  for (auto _ : state)
+  {
+    localizer.reset();
+    for (int i = 0; i < 40; ++i)
+    {
+      stream.next(query);
+      localizer.process(query);
+    }
+    arl::LocalizationStatus status = arl::LocalizationStatus::kTracking;
+    for (int i = 0; i < 50 && status != arl::LocalizationStatus::kLost; ++i)
+    {
+      rng.fill(nowhere, cv::RNG::UNIFORM, 0, 256);
+      normalizeLikeThePreprocessor(nowhere);
+      status = localizer.process(nowhere).status;
+    }
+    not_lost += status == arl::LocalizationStatus::kLost ? 0 : 1;
+    stream.next(query);
+    const auto start = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(localizer.process(query));
+    state.SetIterationTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
+  state.counters["not_lost"] = not_lost;  // iterations whose frames of nowhere did not lose the track
+}
+void mapSizeReplayArgs(benchmark::internal::Benchmark* b)
+{
+  b->ArgNames({ "keyframes", "relocalization_rows" });
+  for (int n : kMapSizes)
+    for (int rows : { 0, 8 })
+      b->Args({ n, rows });
+}
+BENCHMARK(BM_FirstFrameAfterALoss)->Apply(mapSizeReplayArgs)->UseManualTime()->Iterations(20)->Unit(benchmark::kMillisecond);
 
 // ------------------------------------------------------------------------------------------------
 // The real route: every winter query of the Nordland frames against the 1788 summer keyframes, frame
