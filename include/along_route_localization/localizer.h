@@ -120,8 +120,9 @@ struct LocalizerParams
   /// the match further (a station crossed at another speed than taught leaves the answer behind). Not
   /// applied while the query repeats the last view: a repeated view brings no evidence for a jump.
   float motion_prior_cap = 3.0f;
-  /// Frames over which the robot's cruise speed (keyframes per frame along the map) is averaged
-  /// (an exponential moving average of the tracked answer's steps, informative frames only). The DTW's
+  /// Frames over which the robot's cruise speed (keyframes per frame along the map) is averaged: the
+  /// mean of the tracked answer's steps between informative frames (the nominal speed of 1 counts as the
+  /// first), from the cruise_speed_frames-th on an exponential moving average over that many. The DTW's
   /// tie-break between speeds follows it (cruiseSpeedTieBreak): a robot that drives at half the speed it
   /// taught, or a map taught with twice the frame spacing, is followed at half speed through views that
   /// cannot tell speeds apart, instead of at one keyframe per frame. 0 = off (the nominal speed always).
@@ -284,7 +285,8 @@ private:
   LocalizationStatus status_ = LocalizationStatus::kInitializing;
   int last_match_ = -1;
   int tracked_frames_ = 0;               // frames answered since tracking last started
-  double cruise_speed_ = 1.0;            // keyframes per frame, averaged over cruise_speed_frames
+  double cruise_speed_ = 1.0;            // keyframes per frame: the mean of cruise_samples_ samples
+  int cruise_samples_ = 1;               // the nominal speed counts as the first
   GlobalConfirmation confirmation_;
   LossDetector loss_;
   uint64_t frames_ = 0;

@@ -317,6 +317,7 @@ void Localizer::reset()
   run_position_ = -1.0;
   tracked_frames_ = 0;
   cruise_speed_ = 1.0;
+  cruise_samples_ = 1;
   recent_count_ = recent_next_ = 0;
   relocalize_from_recent_ = false;
 }
@@ -587,11 +588,14 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
   {
     // The cruise speed: the steps of a track followed from one informative frame to the next (a
-    // relocalization's jump is not a step; a featureless frame's answer is dead reckoning).
+    // relocalization's jump is not a step; a featureless frame's answer is dead reckoning). Their mean,
+    // with the nominal speed as the first sample, until cruise_speed_frames samples; then a moving
+    // average over that many.
     if (tracking && result.query_informative && params_.cruise_speed_frames > 0)
     {
       const double step = std::min(std::max(match.keyframe - last_match_, 0), params_.dtw.max_step);
-      cruise_speed_ += (step - cruise_speed_) / params_.cruise_speed_frames;
+      cruise_samples_ = std::min(cruise_samples_ + 1, params_.cruise_speed_frames);
+      cruise_speed_ += (step - cruise_speed_) / cruise_samples_;
     }
     ++tracked_frames_;
     last_match_ = match.keyframe;

@@ -877,7 +877,7 @@ TEST(Localizer, FollowsRealStretchWithTwiceTheKeyframeSpacing)
   SKIP_WITHOUT_NORDLAND();
   // Map: every second summer frame of 1000..1299 (150 keyframes), query: every winter frame, so the
   // robot moves half a keyframe per frame (truth of query i: keyframe i / 2) and the tracking band
-  // (centred one keyframe ahead) runs ahead of the track. Measured 84.1 % of the answers within +-1
+  // (centred one keyframe ahead) runs ahead of the track. Measured 85.7 % of the answers within +-1
   // (82.9 % with the tie-break at the nominal speed, 78.6 % with every row weighing 1 too, 75.2 % before
   // column means left out the rows outside the band).
   const RunSummary summary = twiceTheSpacingRun(arl::LocalizerParams());
@@ -892,11 +892,17 @@ TEST(Localizer, RowsWhoseBestMatchStandsOutWeighMoreAtTwiceTheSpacing)
   SKIP_WITHOUT_NORDLAND();
   // The 2:1 stretch above with and without the row weights (rowWeight, row_weight_range 0: every row
   // weighs 1). Half of the queries lie halfway between two keyframes and match neither well; their
-  // rows now count less than those of queries that sit on a keyframe.
-  arl::LocalizerParams unweighted;
+  // rows now count less than those of queries that sit on a keyframe. Measured without the two later
+  // extensions, which mend part of the same errors on this stretch (the tie-break at the cruise speed,
+  // the relocalization from the last frames): 209 against 198 of 252; with both, 216 against 212. On
+  // the whole line with both, 2:1 within one 0.913 -> 0.920 and recall aligned 0.829 -> 0.851 (README).
+  arl::LocalizerParams weighted_params;
+  weighted_params.cruise_speed_frames = 0;
+  weighted_params.relocalization_rows = 0;
+  arl::LocalizerParams unweighted = weighted_params;
   unweighted.row_weight_range = 0.0f;
   const RunSummary plain = twiceTheSpacingRun(unweighted);
-  const RunSummary weighted = twiceTheSpacingRun(arl::LocalizerParams());
+  const RunSummary weighted = twiceTheSpacingRun(weighted_params);
   std::printf("2:1 stretch, rows weighed by their peak: %d of %d within +-1; every row weighing 1: %d of %d\n",
               weighted.within_one, weighted.answered, plain.within_one, plain.answered);
   EXPECT_GE(rate(weighted), rate(plain) + 0.02);
@@ -906,8 +912,8 @@ TEST(Localizer, FollowsTheCruiseSpeedAtTwiceTheSpacing)
 {
   SKIP_WITHOUT_NORDLAND();
   // The 2:1 stretch above: the robot moves half a keyframe per frame by construction. The cruise speed
-  // (cruise_speed_frames 100) starts at 1 and must come down towards 0.5; off, it stays at 1 and the
-  // tie-break keeps the nominal speed.
+  // (cruise_speed_frames 100) starts at 1 and must come down to about 0.5 over the ~270 tracked frames
+  // (measured 0.510); off, it stays at 1 and the tie-break keeps the nominal speed.
   arl::LocalizerParams nominal;
   nominal.cruise_speed_frames = 0;
   const RunSummary fixed = twiceTheSpacingRun(nominal);
@@ -917,7 +923,7 @@ TEST(Localizer, FollowsTheCruiseSpeedAtTwiceTheSpacing)
               cruising.cruise_speed, cruising.within_one, cruising.answered, fixed.within_one, fixed.answered);
   EXPECT_DOUBLE_EQ(1.0, fixed.cruise_speed);
   EXPECT_GT(cruising.cruise_speed, 0.45);
-  EXPECT_LT(cruising.cruise_speed, 0.65);
+  EXPECT_LT(cruising.cruise_speed, 0.6);
   EXPECT_GT(cruising.within_one, fixed.within_one);
 }
 
