@@ -126,14 +126,16 @@ struct LocalizerParams
   /// tie-break between speeds follows it (cruiseSpeedTieBreak): a robot that drives at half the speed it
   /// taught, or a map taught with twice the frame spacing, is followed at half speed through views that
   /// cannot tell speeds apart, instead of at one keyframe per frame. 0 = off (the nominal speed always).
-  /// Chosen on Nordland frames 0-893 among 50 / 100 / 150 / 200 (README, Results).
+  /// Chosen on Nordland frames 0-893 among 70 / 100 / 150; 50 and 200 were worse on the whole line
+  /// (README, Results).
   int cruise_speed_frames = 100;
   DtwParams dtw = localizerDtwDefaults();  ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
   /// When the track is lost, the global search starts from the last relocalization_rows queries, compared
   /// again with the whole map, instead of an empty window: they are frames the robot has seen, and the
   /// loss was judged on them (lost_window_frames). The rows of the lost track are dropped: they covered
-  /// only its band. 0 = start from an empty window. At most K - 1 are used.
+  /// only its band. 0 = start from an empty window. At most K - 1 are used. That first frame computes
+  /// their whole-map rows too: 6.5x-7.8x the time of a global frame (README, Performance).
   int relocalization_rows = 8;
   int min_init_frames = 5;            ///< frames before the first global answer
   /// Consecutive informative frames whose global answer is confident and advances 0..max_step keyframes
