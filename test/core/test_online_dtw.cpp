@@ -71,6 +71,19 @@ std::vector<std::vector<float>> twoPaths()
   return matrix;
 }
 
+// 4 frames x 6 keyframes, ones except zeros at row 0: {0}, row 1: {0, 1}, row 2: {1, 2}, row 3: {2, 3}
+// (a station: consecutive frames look like two consecutive keyframes, so every speed from half to one
+// keyframe per frame fits).
+std::vector<std::vector<float>> stationMatrix()
+{
+  std::vector<std::vector<float>> matrix(4, std::vector<float>(6, 1.0f));
+  matrix[0][0] = 0.0f;
+  matrix[1][0] = matrix[1][1] = 0.0f;
+  matrix[2][1] = matrix[2][2] = 0.0f;
+  matrix[3][2] = matrix[3][3] = 0.0f;
+  return matrix;
+}
+
 // 8 frames over 10 keyframes: 0 1 2 2 (stop) 3 5 7 (double speed) 8.
 const std::vector<int> kStopAndGo = { 0, 1, 2, 2, 3, 5, 7, 8 };
 
@@ -388,8 +401,7 @@ TEST(OnlineDtw, ColumnCenteringStopsAGenericKeyframeFromCarryingThePath)
 
 TEST(OnlineDtw, FirstStopPenaltyBreaksTiesTowardsNominalSpeed)
 {
-  // 4 frames x 6 keyframes, ones except zeros at row 0: {0}, row 1: {0, 1}, row 2: {1, 2}, row 3:
-  // {2, 3} (a station: consecutive frames look like two consecutive keyframes). stop 0.3, skip 0.05.
+  // stationMatrix(). stop 0.3, skip 0.05.
   // first_stop_penalty 0:
   //   A_3(3) = 0: 0 1 2 3, one keyframe per frame, all zeros, no stop.
   //   A_3(2) = 0: 0 0 1 2 (or 0 1 1 2, 0 1 2 2), all zeros, one stop after a move: free.
@@ -402,13 +414,8 @@ TEST(OnlineDtw, FirstStopPenaltyBreaksTiesTowardsNominalSpeed)
   //   and the zero ones stop once): the nominal path is cheaper by exactly the penalty -> end 3, 0 / 4.
   //   A_3(1) = 1 + 0.05 + 0.05 = 1.1 (0 0 1 1: two first stops; 0 1 1 1 = 1 + 0.05 + 0.3 = 1.35).
   //   A_3(0) = 2 + 0.05 + 0.3 + 0.3 = 2.65 (only the first of the three stops follows a move).
-  std::vector<std::vector<float>> matrix(4, std::vector<float>(6, 1.0f));
-  matrix[0][0] = 0.0f;
-  matrix[1][0] = matrix[1][1] = 0.0f;
-  matrix[2][1] = matrix[2][2] = 0.0f;
-  matrix[3][2] = matrix[3][3] = 0.0f;
   arl::CostRingBuffer buffer(4, 6);
-  appendRows(buffer, matrix);
+  appendRows(buffer, stationMatrix());
 
   arl::OnlineDtw free_first_stop(handParams(1));
   const arl::SequenceMatch tied = free_first_stop.match(buffer, 0, 6, 4);
@@ -463,8 +470,7 @@ TEST(OnlineDtw, CruiseSpeedTieBreakSharesTheFirstStopPenaltyWithStraightMoves)
 
 TEST(OnlineDtw, AtHalfCruiseSpeedTheTieGoesToTheStopThatAlternatesWithMoves)
 {
-  // The matrix of FirstStopPenaltyBreaksTiesTowardsNominalSpeed (a station: rows 1-3 fit two consecutive
-  // keyframes each), with skips at 1 so that only stops and moves compete, and the step costs of
+  // stationMatrix() (rows 1-3 fit two consecutive keyframes each), with skips at 1 so that only stops and moves compete, and the step costs of
   // cruiseSpeedTieBreak(first_stop_penalty 0.05, cruise speed 0.5): a stop after a move is free, a (1,1)
   // after a (1,1) pays 0.05 (the oldest row starts as a move). stop 0.3.
   //   A_3(3) = 0.15: 0 1 2 3, three moves after moves (0 0 1 3 would skip: 1).
@@ -472,13 +478,8 @@ TEST(OnlineDtw, AtHalfCruiseSpeedTheTieGoesToTheStopThatAlternatesWithMoves)
   //   A_3(1) = 1: 0 0 1 1 (all steps free, the 1 at (3, 1)).
   //   A_3(0) = 2.6: 0 0 0 0 (ones at rows 2 and 3, the second and third stops 0.3 each).
   // -> end 2, half a keyframe per frame; at the nominal speed's costs the same matrix ends at 3.
-  std::vector<std::vector<float>> matrix(4, std::vector<float>(6, 1.0f));
-  matrix[0][0] = 0.0f;
-  matrix[1][0] = matrix[1][1] = 0.0f;
-  matrix[2][1] = matrix[2][2] = 0.0f;
-  matrix[3][2] = matrix[3][3] = 0.0f;
   arl::CostRingBuffer buffer(4, 6);
-  appendRows(buffer, matrix);
+  appendRows(buffer, stationMatrix());
   arl::DtwParams nominal = handParams(1);
   nominal.first_stop_penalty = 0.05f;
   nominal.skip_penalty = nominal.sustained_skip_penalty = 1.0f;
