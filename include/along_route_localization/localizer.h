@@ -54,7 +54,7 @@ inline DtwParams localizerDtwDefaults()
   // Keeping a fast speed pays less than speeding up (DTW state F): a long stretch at s no longer pays
   // 0.85 every frame, which sank the track's confidence until it was lost. 0.4 was the best of 0.85 /
   // 0.6 / 0.4 on frames 0-893 (sum of the four within-one shares 3.403 / 3.433 / 3.445); frames
-  // 894-1787: 3.718 / 3.770 / 3.764. It keeps an off-route track longer (README, Results).
+  // 894-1787: 3.718 / 3.770 / 3.764. It keeps an off-route track longer (doc/evaluation_history.md).
   params.sustained_skip_penalty = 0.4f;
   return params;
 }
@@ -75,7 +75,7 @@ struct LocalizerParams
   /// many standard deviations (eq. 2) its best keyframe stands out. On Nordland the tracking rows' peaks have a median of 2.6 (10th-90th
   /// percentile 2.0-3.5); on 2:1 spacing 2.3 for queries halfway between two keyframes, 2.7 for the
   /// others. Range 0: every row weighs 1. Chosen on frames 0-893 among references 2 / 2.25 / 2.5 and
-  /// ranges 0.1 / 0.2 / 0.3 / 0.4 (README, Results).
+  /// ranges 0.1 / 0.2 / 0.3 / 0.4 (doc/evaluation_history.md).
   float row_weight_reference = 2.25f;
   float row_weight_range = 0.2f;
   /// A frame or keyframe whose textureEnergy is below min_texture_ratio * the map's median keyframe
@@ -106,7 +106,7 @@ struct LocalizerParams
   /// ahead is another place, left to the loss detection and the global search (a cheaper path there
   /// still lowers the confidence). The slack ahead is wider than behind: answers lag the robot more
   /// often than they lead it (after stations and tunnels crossed at the speed of arrival). On Nordland
-  /// 10-20 gave the same results, 5 was too tight (README, Results).
+  /// 10-20 gave the same results, 5 was too tight (doc/evaluation_history.md).
   int max_jump_ahead = 15;
   /// Motion prior on the new match while tracking (EndPrior): each candidate end pays this much cost per
   /// row per keyframe away from where the robot is predicted to be, up to motion_prior_cap keyframes
@@ -114,7 +114,7 @@ struct LocalizerParams
   /// map spacing, stations): one keyframe off the prediction costs 0.02 per row, 0.6 over K = 30 rows,
   /// against 0.85 for one skip. 0 = off. Chosen on Nordland frames 0-893 among 0.01 / 0.015 / 0.02 with
   /// caps 2 / 3 / 5 (sum of the four scenarios' within-one shares 3.576 to 3.591, without the prior
-  /// 3.513); checked on frames 894-1787: 3.815 -> 3.889 (README, Results).
+  /// 3.513); checked on frames 894-1787: 3.815 -> 3.889 (doc/evaluation_history.md).
   float motion_prior_weight = 0.02f;
   /// Keyframes beyond which the motion prior's penalty stays flat, so stronger evidence can still move
   /// the match further (a station crossed at another speed than taught leaves the answer behind). Not
@@ -127,7 +127,7 @@ struct LocalizerParams
   /// taught, or a map taught with twice the frame spacing, is followed at half speed through views that
   /// cannot tell speeds apart, instead of at one keyframe per frame. 0 = off (the nominal speed always).
   /// Chosen on Nordland frames 0-893 among 70 / 100 / 150; 50 and 200 were worse on the whole line
-  /// (README, Results).
+  /// (doc/evaluation_history.md).
   int cruise_speed_frames = 100;
   DtwParams dtw = localizerDtwDefaults();  ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only

@@ -895,7 +895,7 @@ TEST(Localizer, RowsWhoseBestMatchStandsOutWeighMoreAtTwiceTheSpacing)
   // rows now count less than those of queries that sit on a keyframe. Measured without the two later
   // extensions, which mend part of the same errors on this stretch (the tie-break at the cruise speed,
   // the relocalization from the last frames): 209 against 198 of 252; with both, 216 against 212. On
-  // the whole line with both, 2:1 within one 0.913 -> 0.920 and recall aligned 0.829 -> 0.851 (README).
+  // the whole line with both, 2:1 within one 0.913 -> 0.920 and recall aligned 0.829 -> 0.851 (doc/evaluation_history.md).
   arl::LocalizerParams weighted_params;
   weighted_params.cruise_speed_frames = 0;
   weighted_params.relocalization_rows = 0;
