@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <initializer_list>
 #include <map>
 #include <memory>
 #include <random>
@@ -174,12 +175,18 @@ void mapSizeArgs(benchmark::internal::Benchmark* b)
     b->Arg(n);
 }
 
+// Every map size against each of `values` of a second argument called `name` (off / on, or a count).
+void mapSizeByArgs(benchmark::internal::Benchmark* b, const char* name, std::initializer_list<int> values)
+{
+  b->ArgNames({ "keyframes", name });
+  for (int n : kMapSizes)
+    for (int value : values)
+      b->Args({ n, value });
+}
+
 void mapSizeParallelArgs(benchmark::internal::Benchmark* b)
 {
-  b->ArgNames({ "keyframes", "parallel" });
-  for (int n : kMapSizes)
-    for (int parallel : { 0, 1 })
-      b->Args({ n, parallel });
+  mapSizeByArgs(b, "parallel", { 0, 1 });
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -517,10 +524,7 @@ void BM_GlobalRelocalization(benchmark::State& state)
 }
 void mapSizeCoarseArgs(benchmark::internal::Benchmark* b)
 {
-  b->ArgNames({ "keyframes", "coarse" });
-  for (int n : kMapSizes)
-    for (int coarse : { 0, 1 })
-      b->Args({ n, coarse });
+  mapSizeByArgs(b, "coarse", { 0, 1 });
 }
 BENCHMARK(BM_GlobalRelocalization)->Apply(mapSizeCoarseArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
 
@@ -565,10 +569,7 @@ void BM_FirstFrameAfterALoss(benchmark::State& state)
 }
 void mapSizeReplayArgs(benchmark::internal::Benchmark* b)
 {
-  b->ArgNames({ "keyframes", "relocalization_rows" });
-  for (int n : kMapSizes)
-    for (int rows : { 0, 8 })
-      b->Args({ n, rows });
+  mapSizeByArgs(b, "relocalization_rows", { 0, 8 });
 }
 BENCHMARK(BM_FirstFrameAfterALoss)->Apply(mapSizeReplayArgs)->UseManualTime()->Iterations(20)->Unit(benchmark::kMillisecond);
 
