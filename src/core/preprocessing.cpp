@@ -285,13 +285,20 @@ void Preprocessor::setParams(const PreprocessingParams& params)
 
 void Preprocessor::process(const cv::Mat& input, PixelFormat format, cv::Mat& output)
 {
-  toGray(input, format, gray_);
+  // gray_ is scratch for conversions and must only ever hold a buffer of its own: a mono8 input is read
+  // in place (toGray makes `gray` a header on it), and such a header kept past this call pointed into
+  // the caller's buffer (a message, freed after the callback), so the next colour frame of the same
+  // size was converted into freed memory.
+  cv::Mat gray = gray_;
+  toGray(input, format, gray);
+  if (format != PixelFormat::kMono8)
+    gray_ = gray;  // keeps the buffer toGray (re)allocated for the next frame
   const cv::Size size(params_.output_width, params_.output_height);
   if (output.size() != size || output.type() != CV_8UC1)
     output.create(size, CV_8UC1);
   // INTER_AREA averages all source pixels of a cell, the downsampling SeqSLAM relies on.
   cv::Mat& target = params_.normalization == NormalizationMethod::kDivisive ? small_ : output;
-  cv::resize(gray_, target, size, 0.0, 0.0, cv::INTER_AREA);
+  cv::resize(gray, target, size, 0.0, 0.0, cv::INTER_AREA);
   switch (params_.normalization)
   {
     case NormalizationMethod::kNone:

@@ -562,6 +562,27 @@ TEST(Preprocessor, WritesInPlaceIntoPreallocatedOutput)
   EXPECT_EQ(0, cv::norm(expected, owned, cv::NORM_INF));
 }
 
+TEST(Preprocessor, AMono8InputIsNotWrittenByTheNextFrame)
+{
+  // A mono8 frame is read in place from the caller's buffer (a message's, freed after the callback). A
+  // colour frame of the same size that follows must be converted into the preprocessor's own scratch,
+  // not into that buffer (it did: the nodelet manager died of the heap corruption).
+  arl::Preprocessor preprocessor;
+  std::vector<uint8_t> message(120 * 160);
+  for (size_t i = 0; i < message.size(); ++i)
+    message[i] = static_cast<uint8_t>((i * 37) % 251);
+  const std::vector<uint8_t> sent = message;
+  cv::Mat output;
+  preprocessor.process(cv::Mat(120, 160, CV_8UC1, message.data()), PixelFormat::kMono8, output);
+
+  const cv::Mat colour = randomImage(120, 160, CV_8UC3, 11);
+  cv::Mat expected;
+  arl::Preprocessor(arl::PreprocessingParams()).process(colour, PixelFormat::kBgr8, expected);
+  preprocessor.process(colour, PixelFormat::kBgr8, output);
+  EXPECT_TRUE(message == sent) << "the previous mono8 frame's buffer was overwritten";
+  EXPECT_EQ(0, cv::norm(expected, output, cv::NORM_INF));
+}
+
 TEST(Preprocessor, NoNormalizationAtOutputSizeIsPlainGray)
 {
   // Input already 64 x 32: resizing is the identity, so the output is cvtColor's gray image.
