@@ -3,11 +3,14 @@
 //                    [--method dtw|seqslam] [--topic TOPIC] [--save-map MAP_FILE]
 // PATH: a folder of images (file-name order; every map image is a keyframe), a bag with an image topic,
 // or a map file written by the map recorder.
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -73,6 +76,24 @@ private:
 };
 
 }  // namespace
+
+// Whether two paths name the same existing file (hard links and symlinks included).
+bool sameFile(const std::string& a, const std::string& b)
+{
+  struct stat sa, sb;
+  return stat(a.c_str(), &sa) == 0 && stat(b.c_str(), &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+// Where the results are written before they replace `path`: a file beside it, renamed over it once
+// every row is written, so a failed run leaves an earlier results file as it was. Devices and pipes
+// (/dev/stdout) are written directly.
+std::string stagingPath(const std::string& path)
+{
+  struct stat st;
+  if (stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    return path;
+  return path + ".partial." + std::to_string(getpid());
+}
 
 int main(int argc, char** argv)
 {
@@ -157,6 +178,30 @@ int main(int argc, char** argv)
     std::cerr << "localize_offline: --method must be dtw or seqslam, got '" << method << "'\n";
     return 2;
   }
+  const std::string invalid = localizer_params.validate();
+  if (!invalid.empty())
+  {
+    std::cerr << "localize_offline: invalid localizer parameters: " << invalid << "\n";
+    return 2;
+  }
+  // The outputs must not replace the inputs (a results file written over the query bag lost the drive).
+  for (const auto& output : { std::make_pair("--output", output_path), std::make_pair("--save-map", save_map_path) })
+  {
+    for (const auto& input : { std::make_pair("--map", map_path), std::make_pair("--query", query_path) })
+    {
+      if (!output.second.empty() && sameFile(output.second, input.second))
+      {
+        std::cerr << "localize_offline: " << output.first << " '" << output.second << "' is the " << input.first
+                  << " input; choose another file\n";
+        return 2;
+      }
+    }
+  }
+  if (!save_map_path.empty() && (save_map_path == output_path || sameFile(save_map_path, output_path)))
+  {
+    std::cerr << "localize_offline: --save-map and --output name the same file '" << output_path << "'\n";
+    return 2;
+  }
 
   const auto start = Clock::now();
   std::shared_ptr<alr::RouteMap> map;
@@ -192,12 +237,20 @@ int main(int argc, char** argv)
       std::cerr << "localize_offline: wrote the map (" << map->size() << " keyframes) to " << save_map_path << "\n";
   }
 
-  std::ofstream out(output_path);
+  const std::string staging = stagingPath(output_path);
+  std::ofstream out(staging);
   if (!out)
   {
-    std::cerr << "localize_offline: cannot write '" << output_path << "'\n";
+    std::cerr << "localize_offline: cannot write '" << output_path << "': " << std::strerror(errno) << "\n";
     return 1;
   }
+  const auto fail = [&](const std::string& message) {
+    std::cerr << "localize_offline: " << message << "\n";
+    out.close();
+    if (staging != output_path)
+      std::remove(staging.c_str());
+    return 1;
+  };
   out << "query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";
   const auto localize_start = Clock::now();
   try
@@ -216,11 +269,14 @@ int main(int argc, char** argv)
   }
   catch (const std::exception& e)
   {
-    std::cerr << "localize_offline: " << e.what() << "\n";
-    return 1;
+    return fail(e.what());
   }
   const double localize_seconds = secondsSince(localize_start);
   out.close();
+  if (!out)  // e.g. a full disk: the rows did not all reach the file
+    return fail("writing '" + staging + "' failed: " + std::strerror(errno) + "; '" + output_path + "' is left as it was");
+  if (staging != output_path && std::rename(staging.c_str(), output_path.c_str()) != 0)
+    return fail("cannot move '" + staging + "' to '" + output_path + "': " + std::strerror(errno));
   std::fprintf(stderr,
                "localize_offline: %zu keyframes, %zu queries, method %s: loading %.3f s, localizing %.3f s "
                "(%.3f ms/frame), total %.3f s -> %s\n",

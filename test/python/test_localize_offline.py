@@ -119,6 +119,36 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output',
                                          '/no/such/dir/out.csv'), '/no/such/dir/out.csv')
 
+    def test_a_failed_run_leaves_earlier_files_as_they_were(self):
+        # Results are written beside the output and renamed over it at the end, parameters are checked
+        # before anything is written, and no output may name an input: a results file written over the
+        # query bag, or truncated by a run that then refused its parameters, was lost.
+        keep = os.path.join(self.tmp, 'keep.csv')
+        map_file = os.path.join(self.tmp, 'keep.map')
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', keep,
+                                 '--save-map', map_file)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        with open(keep) as f:
+            results = f.read()
+        with open(map_file, 'rb') as f:
+            map_bytes = f.read()
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', keep,
+                                         '--set', 'contrast_clamp=0'), 'contrast_clamp')
+        self.assertFails(self.run_runner('--map', map_file, '--query', self.map_dir, '--output', map_file),
+                         '--output', '--map')
+        self.assertFails(self.run_runner('--map', map_file, '--query', self.map_dir, '--output', keep,
+                                         '--save-map', map_file), '--save-map', '--map')
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', keep,
+                                         '--save-map', keep), '--save-map', '--output')
+        if os.path.exists('/dev/full'):  # a full disk: the rows did not reach the file
+            self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output',
+                                             '/dev/full'), '/dev/full')
+        with open(keep) as f:
+            self.assertEqual(f.read(), results)
+        with open(map_file, 'rb') as f:
+            self.assertEqual(f.read(), map_bytes)
+        self.assertEqual([n for n in os.listdir(self.tmp) if '.partial.' in n], [])
+
     def test_bad_options(self):
         common = ['--map', self.map_dir, '--query', self.map_dir, '--output', os.path.join(self.tmp, 'o.csv')]
         self.assertFails(self.run_runner(*(common + ['--method', 'foo'])), 'foo')
