@@ -80,22 +80,37 @@ std::string LocalizerParams::validate() const
     e << "search_radius must be >= 1 keyframe, got " << search_radius;
   else if (dtw.max_step < 1 || dtw.max_step > 16)
     e << "max_step must be in [1, 16], got " << dtw.max_step;
-  else if (!(dtw.stop_penalty >= 0.0f) || !(dtw.skip_penalty >= 0.0f))
-    e << "stop_penalty and skip_penalty must be >= 0";
+  else if (!(dtw.stop_penalty >= 0.0f) || !(dtw.skip_penalty >= 0.0f) || !(dtw.first_stop_penalty >= 0.0f) ||
+           !(dtw.move_penalty >= 0.0f) || !(dtw.sustained_skip_penalty >= 0.0f) ||
+           !std::isfinite(dtw.stop_penalty + dtw.skip_penalty + dtw.first_stop_penalty + dtw.move_penalty +
+                          dtw.sustained_skip_penalty))
+    e << "stop_penalty, first_stop_penalty, move_penalty, skip_penalty and sustained_skip_penalty must be "
+         "finite and >= 0";
+  else if (!std::isfinite(dtw.missing_cost) || !std::isfinite(seqslam.missing_cost))
+    e << "missing_cost must be finite";
   else if (dtw.exclusion_radius < 0)
     e << "exclusion_radius must be >= 0, got " << dtw.exclusion_radius;
   else if (seqslam.sequence_length < 1 || seqslam.sequence_length > 1000)
     e << "seqslam sequence_length must be in [1, 1000], got " << seqslam.sequence_length;
-  else if (!(seqslam.velocity_step > 0.0f) || !(seqslam.min_velocity <= seqslam.max_velocity))
-    e << "seqslam velocities need velocity_step > 0 and min_velocity <= max_velocity";
-  else if (min_init_frames < 1)
-    e << "min_init_frames must be >= 1, got " << min_init_frames;
+  else if (!(seqslam.velocity_step > 0.0f) || !(seqslam.min_velocity <= seqslam.max_velocity) ||
+           !std::isfinite(seqslam.min_velocity) || !std::isfinite(seqslam.max_velocity))
+    e << "seqslam velocities need velocity_step > 0 and finite min_velocity <= max_velocity";
+  else if ((seqslam.max_velocity - seqslam.min_velocity) / seqslam.velocity_step > 1000.0f ||
+           std::abs(seqslam.min_velocity) > 100.0f || std::abs(seqslam.max_velocity) > 100.0f)
+    e << "seqslam velocities must lie in [-100, 100] keyframes per frame, at most 1000 steps apart, got "
+      << seqslam.min_velocity << " to " << seqslam.max_velocity << " by " << seqslam.velocity_step;
+  else if (seqslam.exclusion_radius < 0)
+    e << "seqslam exclusion_radius must be >= 0, got " << seqslam.exclusion_radius;
+  else if (min_init_frames < 1 || min_init_frames > 10000)
+    e << "min_init_frames must be in [1, 10000], got " << min_init_frames;
   else if (!(confidence_threshold >= 0.0 && confidence_threshold <= 1.0))
     e << "confidence_threshold must be in [0, 1], got " << confidence_threshold;
   else if (!(confidence_scale > 0.0f))
     e << "confidence_scale must be > 0, got " << confidence_scale;
-  else if (init_confirm_frames < 1)
-    e << "init_confirm_frames must be >= 1, got " << init_confirm_frames;
+  else if (init_confirm_frames < 1 || init_confirm_frames > 10000)
+    e << "init_confirm_frames must be in [1, 10000], got " << init_confirm_frames;
+  else if (lost_window_frames > 10000)  // the dynamic_reconfigure range
+    e << "lost_window_frames must be at most 10000, got " << lost_window_frames;
   else if (lost_after_frames < 1 || lost_after_frames > lost_window_frames)
     e << "lost_after_frames must be in [1, lost_window_frames = " << lost_window_frames << "], got "
       << lost_after_frames;

@@ -2,6 +2,7 @@
 // handling, re-initialization, and the real summer -> winter stretch of Nordland with its traps.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <cstdint>
 #include <cstdio>
 #include <memory>
@@ -158,6 +159,17 @@ TEST(LocalizerParams, ValidateNamesInvalidValues)
   invalid[11].row_weight_reference = 0.0f;
   invalid[12].cruise_speed_frames = -1;
   invalid[13].relocalization_rows = -1;
+  // Found in review: these ran (a negative stop penalty, a NaN cost) or took minutes (a million
+  // baseline velocities, a loss window of 2e9 frames).
+  invalid.resize(22);
+  invalid[14].dtw.first_stop_penalty = -5.0f;
+  invalid[15].dtw.sustained_skip_penalty = std::nanf("");
+  invalid[16].dtw.missing_cost = std::nanf("");
+  invalid[17].seqslam.velocity_step = 1e-6f;
+  invalid[18].seqslam.max_velocity = 1e6f;
+  invalid[19].lost_window_frames = 2000000000;
+  invalid[20].dtw.move_penalty = std::numeric_limits<float>::infinity();
+  invalid[21].init_confirm_frames = 1000000;
   for (size_t i = 0; i < invalid.size(); ++i)
     EXPECT_NE("", invalid[i].validate()) << "case " << i;
   EXPECT_NE(std::string::npos, invalid[9].validate().find("row_weight_range")) << invalid[9].validate();
