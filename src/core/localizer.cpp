@@ -54,8 +54,8 @@ std::string LocalizerParams::validate() const
     e << "contrast_window must be in [1, 10000] keyframes, got " << contrast_window;
   else if (!(contrast_min_std > 0.0f))
     e << "contrast_min_std must be > 0, got " << contrast_min_std;
-  else if (!(contrast_clamp > 0.0f))
-    e << "contrast_clamp must be > 0, got " << contrast_clamp;
+  else if (!(contrast_clamp > 0.0f) || !std::isfinite(contrast_clamp))
+    e << "contrast_clamp must be finite and > 0, got " << contrast_clamp;
   else if (!(min_texture_ratio >= 0.0f && min_texture_ratio <= 4.0f))
     e << "min_texture_ratio must be in [0, 4], got " << min_texture_ratio;
   else if (!(stationary_ratio >= 0.0f && stationary_ratio <= 1.0f))
@@ -88,8 +88,8 @@ std::string LocalizerParams::validate() const
          "finite and >= 0";
   else if (!std::isfinite(dtw.missing_cost) || !std::isfinite(seqslam.missing_cost))
     e << "missing_cost must be finite";
-  else if (dtw.exclusion_radius < 0)
-    e << "exclusion_radius must be >= 0, got " << dtw.exclusion_radius;
+  else if (dtw.exclusion_radius < 0 || dtw.exclusion_radius > 1000000)
+    e << "exclusion_radius must be in [0, 1000000] keyframes, got " << dtw.exclusion_radius;
   else if (seqslam.sequence_length < 1 || seqslam.sequence_length > 1000)
     e << "seqslam sequence_length must be in [1, 1000], got " << seqslam.sequence_length;
   else if (!(seqslam.velocity_step > 0.0f) || !(seqslam.min_velocity <= seqslam.max_velocity) ||
@@ -105,8 +105,8 @@ std::string LocalizerParams::validate() const
     e << "min_init_frames must be in [1, 10000], got " << min_init_frames;
   else if (!(confidence_threshold >= 0.0 && confidence_threshold <= 1.0))
     e << "confidence_threshold must be in [0, 1], got " << confidence_threshold;
-  else if (!(confidence_scale > 0.0f))
-    e << "confidence_scale must be > 0, got " << confidence_scale;
+  else if (!(confidence_scale > 0.0f) || !std::isfinite(confidence_scale))
+    e << "confidence_scale must be finite and > 0, got " << confidence_scale;
   else if (init_confirm_frames < 1 || init_confirm_frames > 10000)
     e << "init_confirm_frames must be in [1, 10000], got " << init_confirm_frames;
   else if (lost_window_frames > 10000)  // the dynamic_reconfigure range

@@ -161,7 +161,10 @@ TEST(LocalizerParams, ValidateNamesInvalidValues)
   invalid[13].relocalization_rows = -1;
   // Found in review: these ran (a negative stop penalty, a NaN cost) or took minutes (a million
   // baseline velocities, a loss window of 2e9 frames).
-  invalid.resize(22);
+  invalid.resize(25);
+  invalid[22].contrast_clamp = std::numeric_limits<float>::infinity();
+  invalid[23].confidence_scale = std::numeric_limits<float>::infinity();
+  invalid[24].dtw.exclusion_radius = 2000000000;
   invalid[14].dtw.first_stop_penalty = -5.0f;
   invalid[15].dtw.sustained_skip_penalty = std::nanf("");
   invalid[16].dtw.missing_cost = std::nanf("");
