@@ -21,8 +21,10 @@ bool applyParameter(const std::string& name, const std::string& value, Preproces
 std::vector<std::string> parameterNames();
 
 /// Reads a flat YAML mapping ("name: value" per line, '#' comments, optional single top-level section
-/// headers such as "preprocessing:" whose indented entries are read the same way) and applies every
-/// entry. Returns false with *error naming the file and line on the first problem.
+/// headers such as "localizer:" whose indented entries are read the same way) and applies every
+/// entry. The entries of a "map_recorder:" section are skipped, so the launch files' params_file (sections
+/// preprocessor:, map_recorder:, localizer:) can be given as it is. Returns false with *error naming the
+/// file and line on the first problem.
 bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,
                        std::string* error);
 

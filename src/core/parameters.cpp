@@ -192,6 +192,7 @@ bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessi
   }
   std::string line;
   int number = 0;
+  bool recorder_section = false;
   while (std::getline(in, line))
   {
     ++number;
@@ -206,8 +207,19 @@ bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessi
     }
     const std::string name = trim(content.substr(0, colon));
     const std::string value = trim(content.substr(colon + 1));
+    const bool indented = line[0] == ' ' || line[0] == '\t';
     if (value.empty())
-      continue;  // a section header such as "localizer:"
+    {
+      // A section header. The launch files' params_file has preprocessor:, map_recorder: and localizer:
+      // sections; the recorder's settings do not concern the offline localizer.
+      if (!indented)
+        recorder_section = name == "map_recorder";
+      continue;
+    }
+    if (!indented)
+      recorder_section = false;
+    if (recorder_section)
+      continue;
     std::string why;
     if (!applyParameter(name, value, preprocessing, localizer, &why))
     {

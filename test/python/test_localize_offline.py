@@ -149,6 +149,26 @@ class LocalizeOfflineTest(unittest.TestCase):
             self.assertEqual(f.read(), map_bytes)
         self.assertEqual([n for n in os.listdir(self.tmp) if '.partial.' in n], [])
 
+    def test_reads_the_launch_files_params_file(self):
+        # The params_file given to teach.launch and repeat.launch: its localizer: section applies, its
+        # map_recorder: section is skipped, a misspelt name is still an error naming file and line.
+        params = os.path.join(self.tmp, 'shared_params.yaml')
+        with open(params, 'w') as f:
+            f.write('preprocessor:\n  normalization_strength: 0.1\nmap_recorder:\n  every_nth: 3\n'
+                    'localizer:\n  min_init_frames: 30  # no answer is confirmed before 30 rows\n')
+        output = os.path.join(self.tmp, 'shared_params.csv')
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
+                                 '--params', params)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        with open(output) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual([r['status'] for r in rows[:29]], ['initializing'] * 29)
+        self.assertIn('tracking', [r['status'] for r in rows[29:]])
+        with open(params, 'a') as f:
+            f.write('  ring_bufer_rows: 10\n')
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
+                                         '--params', params), 'ring_bufer_rows', 'shared_params.yaml:7')
+
     def test_bad_options(self):
         common = ['--map', self.map_dir, '--query', self.map_dir, '--output', os.path.join(self.tmp, 'o.csv')]
         self.assertFails(self.run_runner(*(common + ['--method', 'foo'])), 'foo')
