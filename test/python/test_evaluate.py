@@ -196,6 +196,21 @@ class EvaluateEndToEndTest(unittest.TestCase):
         self.assertEqual(m["dark"]["queries"], 2)
         self.assertEqual(m["dark"]["wrong"], 0)
 
+    def test_rows_without_ground_truth_are_named(self):
+        # a ground truth of 4 of the 6 queries: rows 4 and 5 are not scored, and the user is told
+        gt = os.path.join(self.tmp, "gt.csv")
+        write(gt, "query_index,keyframe\n" + "".join("%d,%d\n" % (i, i) for i in range(4)))
+        json_path = os.path.join(self.tmp, "m.json")
+        code, _, err = self.run_main([self.results, "-g", gt, "--output-json", json_path])
+        self.assertEqual(code, 0)
+        with open(json_path) as f:
+            m = json.load(f)
+        self.assertEqual(m["queries"], 4)
+        self.assertEqual(m["rows_without_ground_truth"], 2)
+        self.assertIn("2 of 6 result rows have no ground truth", err)
+        code, _, err = self.run_main([self.results, "--identity", "--output-json", json_path])
+        self.assertNotIn("warning", err)
+
     def test_keyframe_dark_stationary_and_subsets(self):
         # queries 0-5 (errors 0, 0, 3, 0, no answer, 1): query 2 has a dark keyframe, 3 and 5 are stationary
         gt = os.path.join(self.tmp, "gt.csv")
