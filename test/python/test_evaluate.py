@@ -126,6 +126,14 @@ class EvaluateEndToEndTest(unittest.TestCase):
             code = evaluate.main(args)
         return code, out.getvalue(), err.getvalue()
 
+    def score(self, args):
+        """Runs evaluate with --output-json; asserts exit 0; returns (metrics, stdout, stderr)."""
+        json_path = os.path.join(self.tmp, "m.json")
+        code, out, err = self.run_main(args + ["--output-json", json_path])
+        self.assertEqual(code, 0, err)
+        with open(json_path) as f:
+            return json.load(f), out, err
+
     def check_six(self, m):
         self.assertEqual(m["queries"], 6)
         self.assertEqual(m["no_answer"], 1)
@@ -140,11 +148,7 @@ class EvaluateEndToEndTest(unittest.TestCase):
         self.assertEqual(m["by_status"]["tracking"], {"queries": 4, "wrong": 0})
 
     def test_identity(self):
-        json_path = os.path.join(self.tmp, "m.json")
-        code, out, _ = self.run_main([self.results, "--identity", "--output-json", json_path])
-        self.assertEqual(code, 0)
-        with open(json_path) as f:
-            m = json.load(f)
+        m, out, _ = self.score([self.results, "--identity"])
         self.check_six(m)
         self.assertIn("within 0/1/2/5 frames: 0.500 / 0.667 / 0.667 / 0.833", out)
 
@@ -155,11 +159,7 @@ class EvaluateEndToEndTest(unittest.TestCase):
         gt = os.path.join(self.tmp, "gt.csv")
         write(gt, "query_index,teach_frame,heading_offset_rad,expected_shift_px_64\n"
                   "0,0,0,0\n1,1,0,0\n2,2,0,0\n3,3,0.031,1.0\n4,4,0,0\n5,5,0.031,1.0\n")
-        json_path = os.path.join(self.tmp, "m.json")
-        code, _, _ = self.run_main([self.results, "-g", gt, "--output-json", json_path])
-        self.assertEqual(code, 0)
-        with open(json_path) as f:
-            m = json.load(f)
+        m, _, _ = self.score([self.results, "-g", gt])
         self.check_six(m)
         self.assertEqual(m["homing"]["count"], 2)
         self.assertAlmostEqual(m["homing"]["median_abs_error_px"], 2.0)
@@ -177,11 +177,7 @@ class EvaluateEndToEndTest(unittest.TestCase):
         gt = os.path.join(self.tmp, "gt.csv")
         write(gt, "query_index,keyframe,true_shift_px,query_dark\n" +
               "".join("%d,%d,0,%d\n" % (i, i, 1 if i in (2, 6) else 0) for i in range(8)))
-        json_path = os.path.join(self.tmp, "m.json")
-        code, _, _ = self.run_main([self.results, "-g", gt, "--output-json", json_path])
-        self.assertEqual(code, 0)
-        with open(json_path) as f:
-            m = json.load(f)
+        m, _, _ = self.score([self.results, "-g", gt])
         self.assertEqual(m["queries"], 8)
         self.assertEqual(m["no_answer"], 3)
         self.assertEqual(m["missing_rows"], 2)
@@ -190,9 +186,7 @@ class EvaluateEndToEndTest(unittest.TestCase):
         self.assertEqual(m["dark"]["wrong"], 2)
         self.assertAlmostEqual(m["dark"]["within_tolerance_not_dark"], 4 / 6)
         # explicit list overrides the column
-        code, _, _ = self.run_main([self.results, "-g", gt, "--output-json", json_path, "--dark-frames", "0-1"])
-        with open(json_path) as f:
-            m = json.load(f)
+        m, _, _ = self.score([self.results, "-g", gt, "--dark-frames", "0-1"])
         self.assertEqual(m["dark"]["queries"], 2)
         self.assertEqual(m["dark"]["wrong"], 0)
 
@@ -200,15 +194,11 @@ class EvaluateEndToEndTest(unittest.TestCase):
         # a ground truth of 4 of the 6 queries: rows 4 and 5 are not scored, and the user is told
         gt = os.path.join(self.tmp, "gt.csv")
         write(gt, "query_index,keyframe\n" + "".join("%d,%d\n" % (i, i) for i in range(4)))
-        json_path = os.path.join(self.tmp, "m.json")
-        code, _, err = self.run_main([self.results, "-g", gt, "--output-json", json_path])
-        self.assertEqual(code, 0)
-        with open(json_path) as f:
-            m = json.load(f)
+        m, _, err = self.score([self.results, "-g", gt])
         self.assertEqual(m["queries"], 4)
         self.assertEqual(m["rows_without_ground_truth"], 2)
         self.assertIn("2 of 6 result rows have no ground truth", err)
-        code, _, err = self.run_main([self.results, "--identity", "--output-json", json_path])
+        _, _, err = self.score([self.results, "--identity"])
         self.assertNotIn("warning", err)
 
     def test_keyframe_dark_stationary_and_subsets(self):
@@ -216,11 +206,7 @@ class EvaluateEndToEndTest(unittest.TestCase):
         gt = os.path.join(self.tmp, "gt.csv")
         write(gt, "query_index,keyframe,query_dark,keyframe_dark,query_stationary,keyframe_stationary\n"
                   "0,0,0,0,0,0\n1,1,0,0,0,0\n2,2,0,1,0,0\n3,3,0,0,1,0\n4,4,0,0,0,0\n5,5,0,0,0,1\n")
-        json_path = os.path.join(self.tmp, "m.json")
-        code, out, _ = self.run_main([self.results, "-g", gt, "--output-json", json_path])
-        self.assertEqual(code, 0)
-        with open(json_path) as f:
-            m = json.load(f)
+        m, out, _ = self.score([self.results, "-g", gt])
         self.check_six(m)   # all-query figures are unchanged
         self.assertEqual(m["dark"]["queries"], 1)
         self.assertEqual(m["dark"]["wrong"], 1)
@@ -240,10 +226,7 @@ class EvaluateEndToEndTest(unittest.TestCase):
         self.assertIn("excluding dark and stationary (3 queries)", out)
 
     def test_tolerance_zero(self):
-        json_path = os.path.join(self.tmp, "m.json")
-        self.run_main([self.results, "--identity", "--tolerance", "0", "--output-json", json_path])
-        with open(json_path) as f:
-            m = json.load(f)
+        m, _, _ = self.score([self.results, "--identity", "--tolerance", "0"])
         # hits now 0.9, 0.8, 0.4 (q5 is one off): precision 0, 1/2, 2/3, 2/4, 3/5 at recall 0, 1/6, 2/6, 2/6, 3/6
         self.assertAlmostEqual(m["average_precision"], (0.5 + 2 / 3 + 0.6) / 6)
 
