@@ -75,8 +75,6 @@ private:
   bool enabled_;
 };
 
-}  // namespace
-
 // Whether two paths name the same existing file (hard links and symlinks included).
 bool sameFile(const std::string& a, const std::string& b)
 {
@@ -94,6 +92,8 @@ std::string stagingPath(const std::string& path)
     return path;
   return path + ".partial." + std::to_string(getpid());
 }
+
+}  // namespace
 
 int main(int argc, char** argv)
 {
@@ -184,23 +184,27 @@ int main(int argc, char** argv)
     std::cerr << "localize_offline: invalid localizer parameters: " << invalid << "\n";
     return 2;
   }
-  // The outputs must not replace the inputs (a results file written over the query bag lost the drive).
-  for (const auto& output : { std::make_pair("--output", output_path), std::make_pair("--save-map", save_map_path) })
+  // No output may replace an input or the other output (a results file written over the query bag lost
+  // the drive).
+  struct Named
   {
-    for (const auto& input : { std::make_pair("--map", map_path), std::make_pair("--query", query_path) })
+    const char* option;
+    const std::string& path;
+  };
+  const Named map_in{ "--map", map_path }, query_in{ "--query", query_path }, results_out{ "--output", output_path },
+      map_out{ "--save-map", save_map_path };
+  const std::pair<Named, Named> clashes[] = {
+    { results_out, map_in }, { results_out, query_in }, { map_out, map_in }, { map_out, query_in }, { map_out, results_out }
+  };
+  for (const auto& clash : clashes)
+  {
+    const Named &a = clash.first, &b = clash.second;
+    if (!a.path.empty() && (a.path == b.path || sameFile(a.path, b.path)))
     {
-      if (!output.second.empty() && sameFile(output.second, input.second))
-      {
-        std::cerr << "localize_offline: " << output.first << " '" << output.second << "' is the " << input.first
-                  << " input; choose another file\n";
-        return 2;
-      }
+      std::cerr << "localize_offline: " << a.option << " '" << a.path << "' names the same file as " << b.option
+                << "; choose another file\n";
+      return 2;
     }
-  }
-  if (!save_map_path.empty() && (save_map_path == output_path || sameFile(save_map_path, output_path)))
-  {
-    std::cerr << "localize_offline: --save-map and --output name the same file '" << output_path << "'\n";
-    return 2;
   }
 
   const auto start = Clock::now();
