@@ -12,6 +12,8 @@
 // Disk I/O happens only in the writer thread. It flushes at least every flush_period, and each flush
 // leaves a complete map under the final name, so a killed teach keeps everything up to the last
 // flush. ~finish, unloading the nodelet and SIGINT to the manager all close the map.
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -110,6 +112,7 @@ private:
   bool stop_writer_ = false;
   std::string writer_error_;
   std::string finish_message_;
+  std::string replaced_path_;  // where the map that was at map_path_ before is kept
 
   std::thread writer_thread_;
 };
@@ -142,6 +145,21 @@ void MapRecorderNodelet::onInit()
     NODELET_ERROR("No ~map parameter: set it to the path of the map file to record; nothing will be recorded");
     return;
   }
+  try
+  {
+    checkMapTarget(map_path_);
+  }
+  catch (const MapError& e)
+  {
+    // Said now rather than at the first keyframe; the services still answer, with this error.
+    NODELET_ERROR("Nothing will be recorded: %s", e.what());
+    writer_error_ = e.what();
+  }
+  struct stat existing;
+  if (writer_error_.empty() && ::stat(map_path_.c_str(), &existing) == 0)
+    NODELET_WARN("Map %s exists; when the first keyframe is written it is renamed to %s.replaced-<its time>, "
+                 "not overwritten",
+                 map_path_.c_str(), map_path_.c_str());
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     state_ = autostart ? State::kRecording : State::kIdle;
@@ -421,7 +439,10 @@ void MapRecorderNodelet::writerLoop()
 
     lock.lock();
     if (writer)
+    {
       keyframes_written_ = writer->written();
+      replaced_path_ = writer->replacedPath();
+    }
     if (!error.empty())
       writer_error_ = error;
     if (finish && !finish_done_)
@@ -431,7 +452,9 @@ void MapRecorderNodelet::writerLoop()
       else if (keyframes_written_ == 0)
         finish_message_ = "no keyframes were recorded; no map written to " + map_path_;
       else
-        finish_message_ = "map " + map_path_ + " holds " + std::to_string(keyframes_written_) + " keyframes";
+        finish_message_ = "map " + map_path_ + " holds " + std::to_string(keyframes_written_) + " keyframes" +
+                          (replaced_path_.empty() ? std::string() :
+                                                    "; the map that was there before is kept as " + replaced_path_);
       finish_requested_ = false;
       finish_done_ = true;
       state_ = State::kFinished;

@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -36,6 +37,28 @@ std::string inQuotes(const std::string& path)
 bool fileExists(const std::string& path, struct stat* info)
 {
   return ::stat(path.c_str(), info) == 0;
+}
+
+// The name under which a map file that a new recording replaces is kept:
+// "route.bag" last modified 2026-11-24 10:03:11 -> "route.replaced-2026-11-24-10-03-11.bag", with "-2",
+// "-3", ... when that name is taken too. Nothing is ever overwritten.
+std::string replacedMapPath(const std::string& path, time_t modified)
+{
+  const size_t slash = path.find_last_of('/');
+  const size_t dot = path.find_last_of('.');
+  const bool has_extension = dot != std::string::npos && (slash == std::string::npos || dot > slash + 1);
+  const std::string stem = has_extension ? path.substr(0, dot) : path;
+  const std::string extension = has_extension ? path.substr(dot) : std::string();
+  char when[32] = "unknown-time";
+  struct tm local;
+  if (localtime_r(&modified, &local))
+    std::strftime(when, sizeof(when), "%Y-%m-%d-%H-%M-%S", &local);
+  const std::string base = stem + ".replaced-" + when;
+  struct stat info;
+  std::string candidate = base + extension;
+  for (int n = 2; fileExists(candidate, &info); ++n)
+    candidate = base + "-" + std::to_string(n) + extension;
+  return candidate;
 }
 
 bool isMono8(const std::string& encoding)
@@ -514,6 +537,20 @@ void writeMap(const std::string& path, const RouteMap& map)
   writer.close();
 }
 
+void checkMapTarget(const std::string& path)
+{
+  if (path.empty())
+    throw MapError("no map file given (empty path)");
+  const std::string active = path + ".active";
+  struct stat info;
+  if (fileExists(active, &info) && info.st_size > 0)
+    throw MapError(inQuotes(active) + " exists: a recording of " + inQuotes(path) +
+                   " was interrupted while it was writing, and that file holds its keyframes. Recover it with "
+                   "`rosbag reindex " + active + "` and rename it, or move it away, before recording again");
+  if (fileExists(path, &info) && S_ISDIR(info.st_mode))
+    throw MapError("map file " + inQuotes(path) + " is a directory; give the path of a file to write");
+}
+
 MapWriter::MapWriter(const std::string& path, const PreprocessingParams& params, const std::string& writer_info)
   : path_(path), params_(params), writer_info_(writer_info)
 {
@@ -522,6 +559,7 @@ MapWriter::MapWriter(const std::string& path, const PreprocessingParams& params,
   const std::string invalid = params_.validate();
   if (!invalid.empty())
     throw MapError("cannot record a map with invalid preprocessing parameters: " + invalid);
+  checkMapTarget(path_);
   try
   {
     rosbag::Bag bag;
@@ -570,6 +608,19 @@ void MapWriter::flush()
     return;
   const std::string active = activePath();
   const bool first = written_ == 0;
+  struct stat info;
+  if (first && fileExists(path_, &info))
+  {
+    // A map from before under the same name: keep it under another name rather than overwrite it.
+    const std::string kept = replacedMapPath(path_, info.st_mtime);
+    if (std::rename(path_.c_str(), kept.c_str()) != 0)
+      throw MapError("cannot move the existing file " + inQuotes(path_) + " aside to " + inQuotes(kept) +
+                     " (it is never overwritten): " + std::strerror(errno));
+    replaced_path_ = kept;
+    ROS_WARN_STREAM("Map " << inQuotes(path_) << " existed; the new recording takes its name and the old map is "
+                                                  "kept as "
+                           << inQuotes(kept));
+  }
   // The final name is moved aside while appending, so that it never names a bag being modified.
   if (!first && std::rename(path_.c_str(), active.c_str()) != 0)
     throw MapError("cannot move map file " + inQuotes(path_) + " to " + inQuotes(active) + ": " + std::strerror(errno));

@@ -50,17 +50,23 @@ void writeMap(const std::string& path, const RouteMap& map);
 sensor_msgs::ImagePtr keyframeMessage(const cv::Mat& preprocessed, int64_t stamp_ns,
                                       const std::string& frame_id = std::string());
 
+/// Throws MapError when a map cannot be recorded to `path`: empty, a directory, or a non-empty
+/// `<path>.active` left by an interrupted recording (which holds that recording's keyframes).
+void checkMapTarget(const std::string& path);
+
 /// Writes a map as it is recorded. Not thread-safe: one thread (the recorder's writer thread) owns it.
 ///
 /// Keyframes added are buffered until flush(). Each flush appends them to `<path>.active` and renames
 /// that to `<path>`, so the final name only ever holds a complete, indexed map of everything flushed so
 /// far; `<path>.active` exists only while a flush is writing (if the process dies there, `rosbag
 /// reindex <path>.active` recovers it). A map file left from before keeps its name until the first
-/// keyframe of the new recording is flushed.
+/// keyframe of the new recording is flushed; then it is renamed to replacedPath()
+/// (`<stem>.replaced-<its modification time>.bag`), never overwritten.
 class MapWriter
 {
 public:
-  /// Checks that `<path>.active` can be written (creates it empty). Throws MapError.
+  /// Checks that `<path>.active` can be written (creates it empty). Throws MapError, also when a
+  /// non-empty `<path>.active` exists (an interrupted recording's keyframes: it is not overwritten).
   MapWriter(const std::string& path, const PreprocessingParams& params,
             const std::string& writer_info = std::string());
   /// close(); errors are logged, not thrown.
@@ -87,6 +93,8 @@ public:
   size_t added() const { return written_ + pending_.size(); }
   size_t written() const { return written_; }
   bool closed() const { return closed_; }
+  /// Where the map that was at path() before this recording is kept; empty when there was none.
+  const std::string& replacedPath() const { return replaced_path_; }
 
 private:
   std::string path_;
@@ -96,6 +104,7 @@ private:
   size_t written_ = 0;
   ros::Time last_bag_time_;
   bool closed_ = false;
+  std::string replaced_path_;
 };
 
 }  // namespace along_route_localization

@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """Teach: the recorder turns a played bag into a map file with the expected keyframes."""
 
+import glob
 import os
 import shutil
 import tempfile
@@ -32,6 +33,12 @@ class TeachTest(unittest.TestCase):
             fx.wait_for_service('/%s/map_recorder/finish' % ns)
         cls.announced = rospy.wait_for_message('/every/preprocessing_params', String, timeout=30)
 
+        # A file from an earlier teach already has the manual recorder's map name; it is kept, not
+        # overwritten, once the new recording writes its first keyframe.
+        cls.earlier_manual_map = b'#ROSBAG V2.0\nan earlier teach of this route'
+        with open(cls.maps['manual'], 'wb') as f:
+            f.write(cls.earlier_manual_map)
+
         # First play: the manual recorder has not been started and must record nothing.
         nth_preprocessed = fx.Collector('/nth/image_preprocessed', Image)
         fx.play(os.path.join(cls.tmp, 'teach.bag'))
@@ -53,6 +60,11 @@ class TeachTest(unittest.TestCase):
     def tearDownClass(cls):
         shutil.rmtree(cls.tmp, ignore_errors=True)
         fx.remove(*cls.maps.values())
+        fx.remove(*cls.replaced(cls.maps['manual']))
+
+    @staticmethod
+    def replaced(path):
+        return glob.glob(os.path.splitext(path)[0] + '.replaced-*.bag')
 
     def check_map(self, ns, expected_frames):
         path = self.maps[ns]
@@ -84,6 +96,14 @@ class TeachTest(unittest.TestCase):
     def test_manual_recorder_records_only_after_start(self):
         self.assertTrue(self.manual_start.success, self.manual_start.message)
         self.check_map('manual', self.teach)  # the second play only: 60 keyframes, not 120
+
+    def test_a_map_that_was_there_is_kept_under_another_name(self):
+        kept = self.replaced(self.maps['manual'])
+        self.assertEqual(len(kept), 1, kept)
+        with open(kept[0], 'rb') as f:
+            self.assertEqual(f.read(), self.earlier_manual_map)
+        self.assertIn('the map that was there before is kept as ' + kept[0], self.finish['manual'].message)
+        self.assertEqual(self.replaced(self.maps['every']), [], 'no file was there: nothing to keep')
 
     def test_finished_recorder_refuses_to_start_again(self):
         self.assertFalse(self.start_after_finish.success)

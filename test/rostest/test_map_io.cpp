@@ -139,6 +139,8 @@ TEST_F(MapIoTest, EachFlushLeavesACompleteMapUnderTheFinalName)
   writer.flush();
   EXPECT_EQ(readMap(file).size(), 4u);
   EXPECT_FALSE(exists(file + ".active"));
+  ASSERT_EQ(writer.replacedPath().rfind(path("map.replaced-"), 0), 0u) << writer.replacedPath();
+  EXPECT_EQ(readMap(writer.replacedPath()).size(), 3u) << "the older map is kept, not overwritten";
 
   for (int k = 0; k < 2; ++k)
     writer.add(keyframeMessage(randomKeyframe(rng), 20 + k));
@@ -152,6 +154,54 @@ TEST_F(MapIoTest, EachFlushLeavesACompleteMapUnderTheFinalName)
   EXPECT_EQ(readMap(file).size(), 6u);
   EXPECT_FALSE(exists(file + ".active"));
   EXPECT_THROW(writer.add(keyframeMessage(randomKeyframe(rng), 30)), MapError);
+}
+
+TEST_F(MapIoTest, EveryMapThatWasThereIsKeptUnderItsOwnName)
+{
+  const std::string file = writeTestMap("route.bag", 3);
+  cv::RNG rng(2);
+  std::vector<std::string> kept;
+  for (int recording = 0; recording < 2; ++recording)
+  {
+    MapWriter writer(file, PreprocessingParams());
+    EXPECT_TRUE(writer.replacedPath().empty()) << "nothing is moved before the first keyframe is written";
+    for (int k = 0; k < 4 + recording; ++k)
+      writer.add(keyframeMessage(randomKeyframe(rng), 10 + k));
+    writer.close();
+    kept.push_back(writer.replacedPath());
+  }
+  // Both recordings may happen within one second of the maps they replace: the names still differ.
+  ASSERT_NE(kept[0], kept[1]);
+  EXPECT_EQ(readMap(kept[0]).size(), 3u);
+  EXPECT_EQ(readMap(kept[1]).size(), 4u);
+  EXPECT_EQ(readMap(file).size(), 5u);
+  for (const std::string& name : kept)
+    EXPECT_EQ(name.substr(name.size() - 4), ".bag") << name << " is still a bag by its name";
+}
+
+TEST_F(MapIoTest, AnInterruptedRecordingIsNotOverwritten)
+{
+  const std::string file = path("route.bag");
+  const std::string interrupted = "#ROSBAG V2.0\nkeyframes of a recording killed while appending";
+  writeAll(file + ".active", interrupted);
+  try
+  {
+    MapWriter writer(file, PreprocessingParams());
+    ADD_FAILURE() << "a writer started over " << file << ".active";
+  }
+  catch (const MapError& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("interrupted"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("rosbag reindex " + file + ".active"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(readAll(file + ".active"), interrupted);
+  EXPECT_THROW(checkMapTarget(file), MapError);
+
+  // An empty one (a recorder that stopped before its first flush) holds nothing and is reused.
+  writeAll(file + ".active", "");
+  EXPECT_NO_THROW(checkMapTarget(file));
+  EXPECT_NO_THROW(MapWriter(file, PreprocessingParams()));
+  EXPECT_THROW(checkMapTarget(dir_), MapError) << "a directory";
 }
 
 TEST_F(MapIoTest, AKilledWriterLeavesEverythingUpToTheLastFlush)
