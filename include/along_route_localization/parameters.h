@@ -17,14 +17,19 @@ namespace along_route_localization
 bool applyParameter(const std::string& name, const std::string& value, PreprocessingParams* preprocessing,
                     LocalizerParams* localizer, std::string* error);
 
-/// Every name applyParameter() knows, for --help and error messages.
+/// Every name applyParameter() knows, sorted, for --help and error messages.
 std::vector<std::string> parameterNames();
+/// Those of PreprocessingParams (step 1: the preprocessor's, stored in the map) ...
+std::vector<std::string> preprocessingParameterNames();
+/// ... and those of LocalizerParams (steps 2-5: the localizer's).
+std::vector<std::string> localizerParameterNames();
 
 /// Reads a flat YAML mapping ("name: value" per line, '#' comments, optional single top-level section
 /// headers such as "localizer:" whose indented entries are read the same way) and applies every
 /// entry. The entries of a "map_recorder:" section are skipped, so the launch files' params_file (sections
 /// preprocessor:, map_recorder:, localizer:) can be given as it is. Returns false with *error naming the
-/// file and line on the first problem.
+/// file and line on the first problem, also for a name given twice. Booleans: true/false, yes/no, on/off
+/// (as YAML 1.1 and rosparam read them), 1/0.
 bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,
                        std::string* error);
 

@@ -1,9 +1,11 @@
 #include "along_route_localization/parameters.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <functional>
 #include <map>
+#include <set>
 #include <sstream>
 
 namespace along_route_localization
@@ -39,9 +41,12 @@ bool parseInt(const std::string& text, int* value)
 
 bool parseBool(const std::string& text, bool* value)
 {
-  if (text == "true" || text == "True" || text == "1")
+  // The forms YAML 1.1 (rosparam, roslaunch) reads as booleans, and 1 / 0.
+  static const std::set<std::string> yes = { "true", "True", "TRUE", "yes", "Yes", "YES", "on", "On", "ON", "1" };
+  static const std::set<std::string> no = { "false", "False", "FALSE", "no", "No", "NO", "off", "Off", "OFF", "0" };
+  if (yes.count(text))
     *value = true;
-  else if (text == "false" || text == "False" || text == "0")
+  else if (no.count(text))
     *value = false;
   else
     return false;
@@ -74,10 +79,10 @@ Setter localizerNumber(Getter get)
 
 #define LOCALIZER_FIELD(type, expr) localizerNumber<type>([](LocalizerParams* l) -> type& { return l->expr; })
 
-const std::map<std::string, Setter>& setters()
+// Preprocessing (step 1): the preprocessor's parameters, stored in the map.
+const std::map<std::string, Setter>& preprocessingSetters()
 {
   static const std::map<std::string, Setter> table = {
-    // preprocessing (step 1)
     { "output_width", number(&PreprocessingParams::output_width) },
     { "output_height", number(&PreprocessingParams::output_height) },
     { "normalization",
@@ -88,7 +93,14 @@ const std::map<std::string, Setter>& setters()
     { "normalization_strength", number(&PreprocessingParams::normalization_strength) },
     { "output_gain", number(&PreprocessingParams::output_gain) },
     { "sky_fraction", number(&PreprocessingParams::sky_fraction) },
-    // localizer (steps 2-5)
+  };
+  return table;
+}
+
+// Steps 2-5: the localizer's parameters.
+const std::map<std::string, Setter>& localizerSetters()
+{
+  static const std::map<std::string, Setter> table = {
     { "method",
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return sequenceMethodFromString(v, &l->method); } },
     { "cost_function",
@@ -159,8 +171,10 @@ std::string trim(const std::string& s)
 bool applyParameter(const std::string& name, const std::string& value, PreprocessingParams* preprocessing,
                     LocalizerParams* localizer, std::string* error)
 {
-  const auto it = setters().find(name);
-  if (it == setters().end())
+  auto it = preprocessingSetters().find(name);
+  if (it == preprocessingSetters().end())
+    it = localizerSetters().find(name);
+  if (it == localizerSetters().end())
   {
     *error = "unknown parameter '" + name + "'";
     return false;
@@ -173,11 +187,28 @@ bool applyParameter(const std::string& name, const std::string& value, Preproces
   return true;
 }
 
-std::vector<std::string> parameterNames()
+std::vector<std::string> preprocessingParameterNames()
 {
   std::vector<std::string> names;
-  for (const auto& entry : setters())
+  for (const auto& entry : preprocessingSetters())
     names.push_back(entry.first);
+  return names;
+}
+
+std::vector<std::string> localizerParameterNames()
+{
+  std::vector<std::string> names;
+  for (const auto& entry : localizerSetters())
+    names.push_back(entry.first);
+  return names;
+}
+
+std::vector<std::string> parameterNames()
+{
+  std::vector<std::string> names = preprocessingParameterNames();
+  const std::vector<std::string> localizer = localizerParameterNames();
+  names.insert(names.end(), localizer.begin(), localizer.end());
+  std::sort(names.begin(), names.end());
   return names;
 }
 
@@ -193,6 +224,7 @@ bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessi
   std::string line;
   int number = 0;
   bool recorder_section = false;
+  std::map<std::string, int> set_on_line;  // a name given twice would otherwise silently take the last value
   while (std::getline(in, line))
   {
     ++number;
@@ -224,6 +256,13 @@ bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessi
     if (!applyParameter(name, value, preprocessing, localizer, &why))
     {
       *error = path + ":" + std::to_string(number) + ": " + why;
+      return false;
+    }
+    const auto earlier = set_on_line.emplace(name, number);
+    if (!earlier.second)
+    {
+      *error = path + ":" + std::to_string(number) + ": '" + name + "' is already set on line " +
+               std::to_string(earlier.first->second) + "; give each parameter once";
       return false;
     }
   }

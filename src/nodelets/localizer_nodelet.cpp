@@ -35,6 +35,7 @@
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/parameters.h"
 #include "ros/map_io.h"
+#include "ros/private_parameters.h"
 #include "ros/reconfigure.h"
 
 namespace along_route_localization
@@ -51,6 +52,7 @@ private:
   bool loadMap(const std::string& path, std::string* message);
   void useMapIfAccepted();
   LocalizerParams staticParams(const ros::NodeHandle& private_nh);
+  void warnAboutUnreadParameters(const ros::NodeHandle& private_nh);
   LocalizerParams effectiveParams(const LocalizerParams& requested) const;
   void publishDebugImage(const std_msgs::Header& header, int keyframe);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
@@ -146,31 +148,48 @@ LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh
 {
   // Every core parameter not in Localizer.cfg can still be set once, under the same name that
   // params.yaml and localize_offline use (parameters.h), e.g. ~cost_function, ~min_texture_ratio.
-  // Localizer.cfg's own parameters are dynamic_reconfigure's (onInit): read the list from it.
-  static const std::set<std::string> dynamic = [] {
-    std::set<std::string> names;
-    for (const auto& description : LocalizerConfig::__getParamDescriptions__())
-      names.insert(description->name);
-    return names;
-  }();
+  // Localizer.cfg's own parameters are dynamic_reconfigure's (onInit). A value that does not parse or
+  // is out of range is refused on its own, naming it; the others still apply.
+  static const std::set<std::string> dynamic = configParameterNames<LocalizerConfig>();
   LocalizerParams params;
   PreprocessingParams ignored;  // the preprocessor's business
-  for (const std::string& name : parameterNames())
+  for (const std::string& name : localizerParameterNames())
   {
     XmlRpc::XmlRpcValue value;
     if (dynamic.count(name) || !private_nh.getParam(name, value))
       continue;
+    LocalizerParams candidate = params;
     std::string error;
-    if (!applyParameter(name, toText(value), &ignored, &params, &error))
-      NODELET_ERROR("Ignoring ~%s: %s", name.c_str(), error.c_str());
-  }
-  const std::string invalid = params.validate();
-  if (!invalid.empty())
-  {
-    NODELET_ERROR("Invalid static localizer parameters (%s); using the defaults", invalid.c_str());
-    params = LocalizerParams();
+    if (!applyParameter(name, toText(value), &ignored, &candidate, &error))
+      NODELET_ERROR("Ignoring ~%s: %s; it keeps the default", name.c_str(), error.c_str());
+    else if (!(error = candidate.validate()).empty())
+      NODELET_ERROR("Ignoring ~%s = %s: %s; it keeps the default", name.c_str(), toText(value).c_str(),
+                    error.c_str());
+    else
+      params = candidate;
   }
   return params;
+}
+
+void LocalizerNodelet::warnAboutUnreadParameters(const ros::NodeHandle& private_nh)
+{
+  std::set<std::string> read = configParameterNames<LocalizerConfig>();
+  for (const std::string& name : localizerParameterNames())
+    read.insert(name);
+  const std::set<std::string> own = { "map", "debug_image_scale", "min_rate", "max_rate", "image_transport" };
+  read.insert(own.begin(), own.end());
+  const std::vector<std::string> preprocessing = preprocessingParameterNames();
+  for (const std::string& name : unreadParameters(private_nh, read))
+  {
+    if (std::find(preprocessing.begin(), preprocessing.end(), name) != preprocessing.end())
+      NODELET_WARN("~%s is not read here: it is the preprocessor's parameter, and the localizer takes the "
+                   "preprocessing from the map",
+                   name.c_str());
+    else
+      NODELET_WARN("~%s is not a parameter of the localizer and is ignored (misspelt?). It reads the core "
+                   "parameters of parameters.h and %s",
+                   name.c_str(), joined(own).c_str());
+  }
 }
 
 void LocalizerNodelet::onInit()
@@ -178,13 +197,27 @@ void LocalizerNodelet::onInit()
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& private_nh = getPrivateNodeHandle();
 
+  warnAboutUnreadParameters(private_nh);
   private_nh.param("debug_image_scale", debug_image_scale_, debug_image_scale_);
-  debug_image_scale_ = std::max(1, debug_image_scale_);
+  if (debug_image_scale_ < 1 || debug_image_scale_ > 64)
+  {
+    NODELET_ERROR("~debug_image_scale must be 1 to 64 (%d); using 4", debug_image_scale_);
+    debug_image_scale_ = 4;
+  }
   private_nh.param("min_rate", min_rate_hz_, min_rate_hz_);
   private_nh.param("max_rate", max_rate_hz_, max_rate_hz_);
+  if (!(min_rate_hz_ >= 0.0 && max_rate_hz_ >= min_rate_hz_ && std::isfinite(max_rate_hz_)))
+  {
+    NODELET_ERROR("~min_rate and ~max_rate must satisfy 0 <= min_rate <= max_rate (%g, %g Hz); using 1 and 1000",
+                  min_rate_hz_, max_rate_hz_);
+    min_rate_hz_ = 1.0;
+    max_rate_hz_ = 1000.0;
+  }
   requested_params_ = staticParams(private_nh);
 
   last_valid_config_ = LocalizerConfig::__getDefault__();
+  for (const std::string& sentence : outOfRangeParameters<LocalizerConfig>(private_nh))
+    NODELET_ERROR("%s", sentence.c_str());
   reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<LocalizerConfig>>(config_mutex_, private_nh);
   reconfigure_server_->setCallback([this](LocalizerConfig& config, uint32_t level) { configCb(config, level); });
   {

@@ -20,6 +20,7 @@
 #include <condition_variable>
 #include <deque>
 #include <memory>
+#include <set>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -37,6 +38,7 @@
 #include "along_route_localization/MapRecorderConfig.h"
 #include "along_route_localization/preprocessing.h"
 #include "ros/map_io.h"
+#include "ros/private_parameters.h"
 
 namespace along_route_localization
 {
@@ -122,21 +124,40 @@ void MapRecorderNodelet::onInit()
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& private_nh = getPrivateNodeHandle();
 
+  const std::set<std::string> own = { "map", "autostart", "flush_period", "max_queue", "queue_size",
+                                      "image_transport" };
+  std::set<std::string> read = configParameterNames<MapRecorderConfig>();
+  read.insert(own.begin(), own.end());
+  for (const std::string& name : unreadParameters(private_nh, read))
+    NODELET_WARN("~%s is not a parameter of the map recorder and is ignored (misspelt?). It reads %s",
+                 name.c_str(), joined(read).c_str());
   private_nh.param("map", map_path_, std::string());
   bool autostart = true;
   private_nh.param("autostart", autostart, autostart);
   private_nh.param("flush_period", flush_period_s_, flush_period_s_);
-  if (!(flush_period_s_ > 0.0))
+  if (!(flush_period_s_ > 0.0 && flush_period_s_ <= 3600.0))
   {
-    NODELET_WARN("~flush_period must be > 0 s; using 1.0");
+    NODELET_ERROR("~flush_period must be > 0 and <= 3600 s (%g); using 1.0", flush_period_s_);
     flush_period_s_ = 1.0;
   }
   int max_queue = static_cast<int>(max_queue_);
   private_nh.param("max_queue", max_queue, max_queue);
-  max_queue_ = static_cast<size_t>(std::max(1, max_queue));
+  if (max_queue < 1)
+  {
+    NODELET_ERROR("~max_queue must be at least 1 (%d); using %zu", max_queue, max_queue_);
+    max_queue = static_cast<int>(max_queue_);
+  }
+  max_queue_ = static_cast<size_t>(max_queue);
   int queue_size = 100;
   private_nh.param("queue_size", queue_size, queue_size);
+  if (queue_size < 1)
+  {
+    NODELET_ERROR("~queue_size must be at least 1 (%d); using 100", queue_size);
+    queue_size = 100;
+  }
 
+  for (const std::string& sentence : outOfRangeParameters<MapRecorderConfig>(private_nh))
+    NODELET_ERROR("%s", sentence.c_str());
   reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<MapRecorderConfig>>(config_mutex_, private_nh);
   reconfigure_server_->setCallback([this](MapRecorderConfig& config, uint32_t level) { configCb(config, level); });
 

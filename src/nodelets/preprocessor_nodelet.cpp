@@ -9,6 +9,7 @@
 // Parameters: cfg/Preprocessor.cfg (dynamic); ~queue_size (static, default 5)
 #include <algorithm>
 #include <memory>
+#include <set>
 #include <mutex>
 #include <string>
 
@@ -23,6 +24,7 @@
 #include "along_route_localization/PreprocessorConfig.h"
 #include "along_route_localization/preprocessing.h"
 #include "ros/map_io.h"
+#include "ros/private_parameters.h"
 #include "ros/reconfigure.h"
 
 namespace along_route_localization
@@ -79,10 +81,22 @@ void PreprocessorNodelet::onInit()
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& private_nh = getPrivateNodeHandle();
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
+  const std::set<std::string> own = { "queue_size", "image_transport" };
+  std::set<std::string> read = configParameterNames<PreprocessorConfig>();
+  read.insert(own.begin(), own.end());
+  for (const std::string& name : unreadParameters(private_nh, read))
+    NODELET_WARN("~%s is not a parameter of the preprocessor and is ignored (misspelt?). It reads %s", name.c_str(),
+                 joined(read).c_str());
   private_nh.param("queue_size", queue_size_, queue_size_);
-  queue_size_ = std::max(1, queue_size_);
+  if (queue_size_ < 1)
+  {
+    NODELET_ERROR("~queue_size must be at least 1 (%d); using 1", queue_size_);
+    queue_size_ = 1;
+  }
 
   last_valid_config_ = PreprocessorConfig::__getDefault__();
+  for (const std::string& sentence : outOfRangeParameters<PreprocessorConfig>(private_nh))
+    NODELET_ERROR("%s", sentence.c_str());
   reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<PreprocessorConfig>>(config_mutex_, private_nh);
   reconfigure_server_->setCallback([this](PreprocessorConfig& config, uint32_t level) { configCb(config, level); });
 

@@ -159,6 +159,41 @@ class RobustnessTest(unittest.TestCase):
             time.sleep(0.05)
         self.wait_for_stamp(self.localizations, sent[-1].header.stamp, 'localizations from the reloaded localizer')
 
+    def test_static_parameters_are_checked_one_by_one(self):
+        # A second localizer in the running manager, given one valid static parameter, one invalid, one
+        # dynamic one outside its .cfg range, one misspelt and one that is the preprocessor's: the valid
+        # one applies (before, one bad value reset them all to the defaults), and each of the others is
+        # named (before, all but the invalid one were ignored or clamped without a word).
+        manager, name = '/repeat/repeat_manager', '/repeat/checked_localizer'
+        rospy.set_param(name + '/map', self.map_path)
+        rospy.set_param(name + '/min_init_frames', 25)  # default 5: tracking from about frame 10
+        rospy.set_param(name + '/exclusion_radius', -1)
+        rospy.set_param(name + '/max_step', 0)
+        rospy.set_param(name + '/ring_bufer_rows', 10)
+        rospy.set_param(name + '/normalization_strength', 0.2)
+        checked = fx.Collector('/repeat/checked_localization', Localization, queue_size=1000)
+        loaded = rospy.ServiceProxy(manager + '/load_nodelet', NodeletLoad)(
+            name, 'along_route_localization/localizer', ['/repeat/localization'], ['/repeat/checked_localization'],
+            [], '')
+        self.assertTrue(loaded.success)
+        try:
+            for text in ('Ignoring ~exclusion_radius = -1', '~max_step = 0 is outside 1 .. ', '~ring_bufer_rows is not a parameter of the localizer',
+                         "~normalization_strength is not read here: it is the preprocessor's"):
+                fx.wait_for(lambda: self.rosout.matching(text), 10, 'a message starting %r' % text)
+            fx.wait_for(lambda: self.camera.get_num_connections() > 0, 10, 'the preprocessor')
+            time.sleep(1.0)  # the new localizer's subscription to image_preprocessed
+            sent = [self.good(i) for i in range(FRAMES)]
+            for msg in sent:
+                self.camera.publish(msg)
+                time.sleep(0.05)
+            self.wait_for_stamp(checked, sent[-1].header.stamp, 'localizations from the checked localizer')
+            statuses = [m.status for m in checked.snapshot()]
+            self.assertGreaterEqual(len(statuses), 30)
+            first_tracking = statuses.index(Localization.STATUS_TRACKING)
+            self.assertGreaterEqual(first_tracking + (FRAMES - len(statuses)), 24, statuses)
+        finally:
+            rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)(name)
+
 
 if __name__ == '__main__':
     rostest.rosrun('along_route_localization', 'robustness', RobustnessTest)

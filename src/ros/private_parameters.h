@@ -1,0 +1,62 @@
+// A nodelet's private parameters: which of those set on the parameter server it does not read.
+#ifndef ALONG_ROUTE_LOCALIZATION_ROS_PRIVATE_PARAMETERS_H
+#define ALONG_ROUTE_LOCALIZATION_ROS_PRIVATE_PARAMETERS_H
+
+#include <set>
+#include <string>
+#include <vector>
+
+#include <boost/any.hpp>
+#include <ros/node_handle.h>
+
+namespace along_route_localization
+{
+
+/// The names set directly under private_nh's namespace (`~name`, not `~group/name`) that are not in
+/// `read`: a misspelt or misplaced parameter would otherwise be ignored without a word. Sorted.
+std::vector<std::string> unreadParameters(const ros::NodeHandle& private_nh, const std::set<std::string>& read);
+
+/// The names of a dynamic_reconfigure config's parameters (Config = e.g. LocalizerConfig).
+template <class Config>
+std::set<std::string> configParameterNames()
+{
+  std::set<std::string> names;
+  for (const auto& description : Config::__getParamDescriptions__())
+    names.insert(description->name);
+  return names;
+}
+
+/// "~name = value is outside lo .. hi; dynamic_reconfigure uses lo instead".
+std::string outOfRangeSentence(const std::string& name, double value, double lo, double hi);
+
+/// For each numeric parameter of a dynamic_reconfigure config set under private_nh outside the .cfg's
+/// range, a sentence saying so: dynamic_reconfigure clamps such a value without a word. Call before
+/// creating the reconfigure server (which writes the clamped values back).
+template <class Config>
+std::vector<std::string> outOfRangeParameters(const ros::NodeHandle& private_nh)
+{
+  const Config min = Config::__getMin__(), max = Config::__getMax__();
+  std::vector<std::string> sentences;
+  for (const auto& description : Config::__getParamDescriptions__())
+  {
+    const bool is_int = description->type == "int";
+    double value = 0.0;
+    if ((!is_int && description->type != "double") || !private_nh.getParam(description->name, value))
+      continue;
+    boost::any low, high;
+    description->getValue(min, low);
+    description->getValue(max, high);
+    const double lo = is_int ? boost::any_cast<int>(low) : boost::any_cast<double>(low);
+    const double hi = is_int ? boost::any_cast<int>(high) : boost::any_cast<double>(high);
+    if (!(value >= lo && value <= hi))
+      sentences.push_back(outOfRangeSentence(description->name, value, lo, hi));
+  }
+  return sentences;
+}
+
+/// "a, b, c".
+std::string joined(const std::set<std::string>& names);
+
+}  // namespace along_route_localization
+
+#endif  // ALONG_ROUTE_LOCALIZATION_ROS_PRIVATE_PARAMETERS_H
