@@ -252,6 +252,23 @@ class EvaluateEndToEndTest(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("keyframe or teach_frame", err)
 
+    def test_a_confidence_that_cannot_be_ranked_is_refused(self):
+        for value in ("nan", "inf", "-inf"):
+            bad = os.path.join(self.tmp, "bad.csv")
+            write(bad, SIX_QUERIES.replace("3,3,0.4,", "3,3,%s," % value))
+            code, _, err = self.run_main([bad, "--identity"])
+            self.assertEqual(code, 2, value)
+            self.assertIn("row 5: confidence must be a finite number", err)
+
+    def test_dark_frames_that_are_not_queries_are_refused(self):
+        # The six queries are 0 .. 5: frame 9 cannot be dark here (a list meant for another run).
+        code, _, err = self.run_main([self.results, "--identity", "--dark-frames", "2,9"])
+        self.assertEqual(code, 2)
+        self.assertIn("1 frame(s) that are not queries here (9)", err)
+        self.assertEqual(self.run_main([self.results, "--identity", "--dark-frames", "4-2"])[0], 2)
+        m, _, _ = self.score([self.results, "--identity", "--dark-frames", "2,5"])
+        self.assertEqual(m["dark"]["queries"], 2)
+
 
 class IndexListTest(unittest.TestCase):
     def test_ranges(self):
@@ -268,6 +285,8 @@ class IndexListTest(unittest.TestCase):
     def test_malformed(self):
         with self.assertRaises(evaluate.InputError):
             evaluate.parse_index_list("3,x")
+        with self.assertRaises(evaluate.InputError):
+            evaluate.parse_index_list("12-10")
 
 
 if __name__ == "__main__":

@@ -131,6 +131,24 @@ class BagTest(unittest.TestCase):
             self.assertEqual(images_to_bag.main([empty, os.path.join(self.tmp, "x.bag")]), 2)
             self.assertEqual(images_to_bag.main([os.path.join(self.tmp, "nope"), os.path.join(self.tmp, "x.bag")]), 2)
 
+    def test_stamps_outside_ros_time_are_refused_by_name(self):
+        # ROS time is unsigned 32-bit seconds: three frames at 1 Hz from 2^32 - 2 s end at 2^32 s.
+        for start, rate in (("-5", "10"), ("1e12", "10"), (str(2 ** 32 - 2), "1")):
+            bag_path = os.path.join(self.tmp, "stamps.bag")
+            with contextlib.redirect_stderr(io.StringIO()) as err:
+                code = images_to_bag.main([self.folder, bag_path, "--start-time", start, "--rate", rate])
+            self.assertEqual(code, 2, start)
+            self.assertIn("do not fit ROS time", err.getvalue())
+            self.assertFalse(os.path.exists(bag_path))
+        with contextlib.redirect_stderr(io.StringIO()) as err:
+            self.assertEqual(images_to_bag.main([self.folder, bag_path, "--rate", "inf"]), 2)
+        self.assertIn("rate must be > 0 and finite", err.getvalue())
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.assertEqual(images_to_bag.main([self.folder, bag_path, "--start-time", str(2 ** 32 - 3),
+                                                 "--rate", "1"]), 0)
+        self.assertEqual([m.header.stamp.secs for _, m, _ in self.read(bag_path)],
+                         [2 ** 32 - 3, 2 ** 32 - 2, 2 ** 32 - 1])
+
     def test_images_of_different_sizes_are_refused(self):
         self.cv2.imwrite(os.path.join(self.folder, "z.png"), np.zeros((5, 6, 3), np.uint8))
         with contextlib.redirect_stderr(io.StringIO()):
