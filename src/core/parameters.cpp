@@ -213,7 +213,7 @@ std::vector<std::string> parameterNames()
 }
 
 bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,
-                       std::string* error)
+                       std::string* error, std::vector<std::string>* names)
 {
   std::ifstream in(path);
   if (!in)
@@ -265,6 +265,8 @@ bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessi
                std::to_string(earlier.first->second) + "; give each parameter once";
       return false;
     }
+    if (names)
+      names->push_back(name);
   }
   return true;
 }

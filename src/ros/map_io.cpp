@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <fstream>
@@ -407,6 +408,30 @@ std::string preprocessingParamsTopic(const std::string& resolved_image_topic)
   return parent == "/" ? "/preprocessing_params" : parent + "/preprocessing_params";
 }
 
+namespace
+{
+
+// "0.10000000000000001" (as serialized, to round-trip) -> "0.1": the fewest digits that give the same
+// double. Text that is not a number is returned as it is.
+std::string readableValue(const std::string& text)
+{
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size())
+    return text;
+  for (int digits = 1; digits <= 17; ++digits)
+  {
+    std::ostringstream shorter;
+    shorter.precision(digits);
+    shorter << value;
+    if (std::strtod(shorter.str().c_str(), nullptr) == value)
+      return shorter.str();
+  }
+  return text;
+}
+
+}  // namespace
+
 std::string preprocessingDifference(const PreprocessingParams& a, const PreprocessingParams& b)
 {
   const auto fields = [](const std::string& text) {
@@ -429,11 +454,12 @@ std::string preprocessingDifference(const PreprocessingParams& a, const Preproce
     const auto other = fields_b.find(field.first);
     const std::string value_b = other == fields_b.end() ? std::string("(none)") : other->second;
     if (value_b != field.second)
-      difference += (difference.empty() ? "" : ", ") + field.first + ": " + field.second + " vs " + value_b;
+      difference += (difference.empty() ? "" : ", ") + field.first + ": " + readableValue(field.second) + " vs " +
+                    readableValue(value_b);
   }
   for (const auto& field : fields_b)
     if (!fields_a.count(field.first))
-      difference += (difference.empty() ? "" : ", ") + field.first + ": (none) vs " + field.second;
+      difference += (difference.empty() ? "" : ", ") + field.first + ": (none) vs " + readableValue(field.second);
   if (difference.empty() && a != b)
     difference = "'" + a.serialize() + "' vs '" + b.serialize() + "'";
   return difference;

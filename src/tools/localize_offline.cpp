@@ -44,7 +44,8 @@ void usage(std::ostream& out)
          "                        [--method dtw|seqslam] [--topic TOPIC] [--set name=value ...]\n"
          "                        [--save-map MAP_FILE] [--quiet]\n"
          "  PATH: a folder of images (sorted by file name), a bag with an image topic, or a map file\n"
-         "        written by the map recorder (its stored preprocessing parameters are used).\n"
+         "        written by the map recorder (its stored preprocessing parameters are used; any given\n"
+         "        with --params or --set must agree with them).\n"
          "  --save-map: also write the loaded map as a map file (the recorder's format: for the localizer\n"
          "        nodelet, or a later --map that skips decoding and preprocessing the images).\n"
          "  --params: flat YAML 'name: value' file; --set overrides one parameter. Names:\n   ";
@@ -160,7 +161,9 @@ int main(int argc, char** argv)
   alr::PreprocessingParams preprocessing;
   alr::LocalizerParams localizer_params;
   std::string error;
-  if (!params_path.empty() && !alr::loadParameterFile(params_path, &preprocessing, &localizer_params, &error))
+  std::vector<std::string> names_given;
+  if (!params_path.empty() &&
+      !alr::loadParameterFile(params_path, &preprocessing, &localizer_params, &error, &names_given))
   {
     std::cerr << "localize_offline: " << error << "\n";
     return 2;
@@ -172,6 +175,17 @@ int main(int argc, char** argv)
       std::cerr << "localize_offline: --set: " << error << "\n";
       return 2;
     }
+    names_given.push_back(kv.first);
+  }
+  const std::vector<std::string> preprocessing_names = alr::preprocessingParameterNames();
+  const bool preprocessing_given = std::any_of(names_given.begin(), names_given.end(), [&](const std::string& name) {
+    return std::find(preprocessing_names.begin(), preprocessing_names.end(), name) != preprocessing_names.end();
+  });
+  const std::string invalid_preprocessing = preprocessing.validate();
+  if (!invalid_preprocessing.empty())
+  {
+    std::cerr << "localize_offline: invalid preprocessing parameters: " << invalid_preprocessing << "\n";
+    return 2;
   }
   if (!method.empty() && !alr::sequenceMethodFromString(method, &localizer_params.method))
   {
@@ -212,10 +226,20 @@ int main(int argc, char** argv)
   std::vector<cv::Mat> queries;
   try
   {
-    // A recorder map carries the preprocessing it was made with; images are preprocessed with ours.
+    // A recorder map carries the preprocessing it was made with, and the queries must be preprocessed
+    // the same way: preprocessing parameters given for the run must agree with it.
+    const alr::PreprocessingParams requested = preprocessing;
     map = alr::loadMapFromPath(map_path, topic, &preprocessing);
     if (map->empty())
       throw alr::MapError("the map '" + map_path + "' holds no keyframes");
+    if (preprocessing_given && !(requested == preprocessing))
+    {
+      std::cerr << "localize_offline: the map file '" << map_path << "' was made with other preprocessing parameters "
+                << "than those given (" << alr::preprocessingDifference(preprocessing, requested)
+                << ", map vs given); the queries are preprocessed as the map was, so leave them out, or give "
+                   "--map the images to preprocess them anew\n";
+      return 2;
+    }
     queries = alr::loadPreprocessedFrames(query_path, topic, preprocessing);
     if (queries.empty())
       throw alr::MapError("the query '" + query_path + "' holds no images");

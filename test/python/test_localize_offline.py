@@ -169,6 +169,26 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
                                          '--params', params), 'ring_bufer_rows', 'shared_params.yaml:7')
 
+    def test_preprocessing_given_for_a_map_file_must_agree_with_it(self):
+        # A map file's keyframes were preprocessed with its stored parameters; a query preprocessed with
+        # others would be compared with them all the same. Given and equal: runs; given and different:
+        # refused, naming the difference; invalid: refused before anything is loaded.
+        map_file = os.path.join(self.tmp, 'strength.map')
+        output = os.path.join(self.tmp, 'strength.csv')
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
+                                 '--set', 'normalization_strength=0.2', '--save-map', map_file)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        result = self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output,
+                                 '--set', 'normalization_strength=0.2')
+        self.assertEqual(result.returncode, 0, result.stderr)
+        result = self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output)
+        self.assertEqual(result.returncode, 0, 'none given: the map\'s are used\n' + result.stderr)
+        self.assertFails(self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output,
+                                         '--set', 'normalization_strength=0.1'),
+                         'other preprocessing parameters', 'normalization_strength: 0.2 vs 0.1')
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
+                                         '--set', 'output_width=0'), 'invalid preprocessing parameters')
+
     def test_bad_options(self):
         common = ['--map', self.map_dir, '--query', self.map_dir, '--output', os.path.join(self.tmp, 'o.csv')]
         self.assertFails(self.run_runner(*(common + ['--method', 'foo'])), 'foo')

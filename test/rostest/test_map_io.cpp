@@ -378,6 +378,10 @@ TEST(MapIo, ParameterDifferenceNamesTheFieldsThatDiffer)
   const std::string difference = preprocessingDifference(a, b);
   EXPECT_NE(difference.find("output_width: 64 vs 32"), std::string::npos) << difference;
   EXPECT_NE(difference.find("sky_fraction: 0 vs 0.25"), std::string::npos) << difference;
+  // Values read as typed, not as serialized to round-trip (0.10000000000000001).
+  b.normalization_strength = 0.2;
+  EXPECT_NE(preprocessingDifference(a, b).find("normalization_strength: 0.1 vs 0.2,"), std::string::npos)
+      << preprocessingDifference(a, b);
   EXPECT_EQ(difference.find("patch_size"), std::string::npos) << difference;
   EXPECT_EQ(preprocessingDifference(a, a), "");
 }
