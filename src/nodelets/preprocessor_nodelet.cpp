@@ -23,6 +23,7 @@
 
 #include "along_route_localization/PreprocessorConfig.h"
 #include "along_route_localization/preprocessing.h"
+#include "ros/image_message.h"
 #include "ros/map_io.h"
 #include "ros/private_parameters.h"
 #include "ros/reconfigure.h"
@@ -58,6 +59,8 @@ private:
   // Used only from the nodelet's single-threaded callback queue (imageCb) after onInit.
   Preprocessor preprocessor_;
   bool in_place_warned_ = false;
+  std::string last_problem_;  // of the last bad input logged (checkInput), and when
+  ros::WallTime last_problem_time_;
 };
 
 namespace
@@ -169,31 +172,18 @@ void PreprocessorNodelet::announce(const PreprocessingParams& params)
 
 bool PreprocessorNodelet::checkInput(const sensor_msgs::Image& msg, PixelFormat* format)
 {
-  if (!pixelFormatFromEncoding(msg.encoding, format))
+  const std::string problem = imageMessageProblem(msg, format);
+  if (problem.empty())
+    return true;
+  // At most one message per 5 s for the same problem, but a new problem is said at once.
+  const ros::WallTime now = ros::WallTime::now();
+  if (problem != last_problem_ || (now - last_problem_time_).toSec() >= 5.0)
   {
-    NODELET_ERROR_THROTTLE(5.0, "Dropping %ux%u image with unsupported encoding '%s'; accepted encodings: %s",
-                           msg.width, msg.height, msg.encoding.c_str(), supportedEncodings().c_str());
-    return false;
+    NODELET_ERROR("Dropping %s", problem.c_str());
+    last_problem_ = problem;
+    last_problem_time_ = now;
   }
-  // cv_bridge wraps the buffer without checking it against the declared geometry.
-  const int bytes_per_pixel = sensor_msgs::image_encodings::numChannels(msg.encoding) *
-                              sensor_msgs::image_encodings::bitDepth(msg.encoding) / 8;
-  if (msg.width == 0 || msg.height == 0 || msg.step < msg.width * static_cast<uint32_t>(bytes_per_pixel) ||
-      msg.data.size() < static_cast<size_t>(msg.step) * msg.height)
-  {
-    NODELET_ERROR_THROTTLE(5.0,
-                           "Dropping malformed '%s' image: %ux%u px, step %u, %zu bytes of data "
-                           "(need width, height > 0, step >= width * %d and step * height bytes)",
-                           msg.encoding.c_str(), msg.width, msg.height, msg.step, msg.data.size(), bytes_per_pixel);
-    return false;
-  }
-  if (msg.is_bigendian && bytes_per_pixel / sensor_msgs::image_encodings::numChannels(msg.encoding) > 1)
-  {
-    NODELET_ERROR_THROTTLE(5.0, "Dropping big-endian '%s' image: only little-endian multi-byte pixels are accepted",
-                           msg.encoding.c_str());
-    return false;
-  }
-  return true;
+  return false;
 }
 
 void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)

@@ -3,8 +3,10 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <fstream>
 #include <map>
 #include <set>
+#include <sstream>
 #include <stdexcept>
 
 #include <boost/filesystem.hpp>
@@ -14,6 +16,7 @@
 #include <rosbag/view.h>
 #include <sensor_msgs/Image.h>
 
+#include "ros/image_message.h"
 #include "ros/map_io.h"
 
 namespace along_route_localization
@@ -113,7 +116,17 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
   }
   catch (const std::exception& e)
   {
-    throw std::runtime_error("cannot open bag '" + path + "': " + e.what());
+    // rosbag's own words ("wanted 4 bytes, read 0 bytes") do not say what is wrong with the file.
+    std::ifstream file(path, std::ios::binary);
+    std::string head(13, '\0');
+    file.read(&head[0], static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<size_t>(file.gcount()));
+    if (head.empty())
+      throw std::runtime_error("'" + path + "' is empty (0 bytes): neither a bag nor a map file");
+    if (head != "#ROSBAG V2.0\n")
+      throw std::runtime_error("'" + path + "' is not a bag or map file (nor a folder of images)");
+    throw std::runtime_error("bag '" + path + "' cannot be read, probably cut short (a recording that was "
+                             "interrupted?): `rosbag reindex " + path + "` may recover it. rosbag says: " + e.what());
   }
   const std::string image_topic = imageTopicOf(bag, path, topic);
   rosbag::View view(bag, rosbag::TopicQuery(image_topic));
@@ -123,16 +136,31 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
   std::vector<cv::Mat> frames;
   for (const rosbag::MessageInstance& m : view)
   {
+    // Which message, for every error below: the bag, the topic, its 0-based position there, its stamp.
+    const size_t position = frames.size();
+    const auto where = [&] {
+      std::ostringstream text;
+      text << "'" << path << "', topic '" << image_topic << "', message " << position << " (bag time "
+           << m.getTime() << ")";
+      return text.str();
+    };
     const sensor_msgs::Image::ConstPtr msg = m.instantiate<sensor_msgs::Image>();
     if (!msg)
-      throw std::runtime_error("topic '" + image_topic + "' of '" + path + "' is not sensor_msgs/Image");
+      throw std::runtime_error(where() + ": not a sensor_msgs/Image but " + m.getDataType());
     PixelFormat format;
-    if (!pixelFormatFromEncoding(msg->encoding, &format))
-      throw std::runtime_error("image encoding '" + msg->encoding + "' in '" + path + "' is not supported (supported: " +
-                               supportedEncodings() + ")");
-    const cv_bridge::CvImageConstPtr image = cv_bridge::toCvShare(msg);
-    frames.emplace_back();
-    preprocessor.process(image->image, format, frames.back());
+    const std::string problem = imageMessageProblem(*msg, &format);
+    if (!problem.empty())
+      throw std::runtime_error(where() + ": " + problem);
+    try
+    {
+      const cv_bridge::CvImageConstPtr image = cv_bridge::toCvShare(msg);
+      frames.emplace_back();
+      preprocessor.process(image->image, format, frames.back());
+    }
+    catch (const std::exception& e)  // PreprocessingError (e.g. NaN pixels), cv_bridge::Exception
+    {
+      throw std::runtime_error(where() + ": " + e.what());
+    }
     if (stamps_ns)
       stamps_ns->push_back(static_cast<int64_t>(msg->header.stamp.toNSec()));
   }

@@ -115,6 +115,60 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.bad_dir, '--output',
                                          os.path.join(self.tmp, 'bad.csv')), 'a.png')
 
+    def write_bag(self, name, images):
+        """A bag with the sensor_msgs/Image messages `images` on /cam, at bag times 100, 101, ..."""
+        import rosbag
+        import rospy
+        path = os.path.join(self.tmp, name)
+        with rosbag.Bag(path, 'w') as bag:
+            for i, msg in enumerate(images):
+                bag.write('/cam', msg, rospy.Time(100 + i))
+        return path
+
+    @staticmethod
+    def image(encoding, width, height, data, step, bigendian=0):
+        from sensor_msgs.msg import Image
+        msg = Image()
+        msg.encoding, msg.width, msg.height, msg.step, msg.data, msg.is_bigendian = (
+            encoding, width, height, step, bytes(data), bigendian)
+        return msg
+
+    def test_bad_bag_messages_are_named_by_bag_topic_and_position(self):
+        # Each bag: two good frames, then the bad one at position 2; the error names all three.
+        good = self.image('mono8', 64, 32, bytes(range(256)) * 8, 64)
+        nan = np.full((32, 64), 0.5, np.float32)
+        nan[5, 7] = np.nan
+        cases = {
+            'step.bag': (self.image('mono8', 64, 32, bytes(64 * 32), 32), 'step 32'),
+            'short.bag': (self.image('mono8', 64, 32, bytes(64 * 32 - 1), 64), '2047 bytes of data'),
+            'big_endian.bag': (self.image('mono16', 64, 32, bytes(64 * 32 * 2), 128, bigendian=1),
+                               "big-endian 'mono16'"),
+            'nan.bag': (self.image('32FC1', 64, 32, nan.tobytes(), 256), 'NaN'),
+            'yuv.bag': (self.image('yuv422', 64, 32, bytes(64 * 32 * 2), 128), "unsupported encoding 'yuv422'"),
+        }
+        for name, (bad, words) in cases.items():
+            bag = self.write_bag(name, [good, good, bad])
+            self.assertFails(self.run_runner('--map', self.map_dir, '--query', bag, '--output',
+                                             os.path.join(self.tmp, 'bad_bag.csv')),
+                             "'%s', topic '/cam', message 2 (bag time 102" % bag, words)
+
+    def test_a_cut_short_or_foreign_file_is_named_for_what_it_is(self):
+        good = self.image('mono8', 64, 32, bytes(range(256)) * 8, 64)
+        bag = self.write_bag('whole.bag', [good] * 20)
+        with open(bag, 'rb') as f:
+            content = f.read()
+        cut = os.path.join(self.tmp, 'cut.bag')
+        with open(cut, 'wb') as f:
+            f.write(content[:len(content) // 2])
+        foreign = os.path.join(self.tmp, 'notes.txt')
+        with open(foreign, 'w') as f:
+            f.write('not a bag at all')
+        output = os.path.join(self.tmp, 'cut.csv')
+        self.assertFails(self.run_runner('--map', cut, '--query', self.map_dir, '--output', output),
+                         'probably cut short', 'rosbag reindex %s' % cut)
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', foreign, '--output', output),
+                         "'%s' is not a bag or map file" % foreign)
+
     def test_unwritable_output(self):
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output',
                                          '/no/such/dir/out.csv'), '/no/such/dir/out.csv')
