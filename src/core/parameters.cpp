@@ -171,15 +171,19 @@ std::string trim(const std::string& s)
 bool applyParameter(const std::string& name, const std::string& value, PreprocessingParams* preprocessing,
                     LocalizerParams* localizer, std::string* error)
 {
-  auto it = preprocessingSetters().find(name);
-  if (it == preprocessingSetters().end())
-    it = localizerSetters().find(name);
-  if (it == localizerSetters().end())
+  const Setter* setter = nullptr;
+  for (const std::map<std::string, Setter>* table : { &preprocessingSetters(), &localizerSetters() })
+  {
+    const auto it = table->find(name);
+    if (it != table->end())
+      setter = &it->second;
+  }
+  if (!setter)
   {
     *error = "unknown parameter '" + name + "'";
     return false;
   }
-  if (!it->second(value, preprocessing, localizer))
+  if (!(*setter)(value, preprocessing, localizer))
   {
     *error = "parameter '" + name + "' cannot take the value '" + value + "'";
     return false;

@@ -18,6 +18,8 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <boost/thread/recursive_mutex.hpp>
 #include <cv_bridge/cv_bridge.h>
@@ -148,25 +150,53 @@ LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh
 {
   // Every core parameter not in Localizer.cfg can still be set once, under the same name that
   // params.yaml and localize_offline use (parameters.h), e.g. ~cost_function, ~min_texture_ratio.
-  // Localizer.cfg's own parameters are dynamic_reconfigure's (onInit). A value that does not parse or
-  // is out of range is refused on its own, naming it; the others still apply.
+  // Localizer.cfg's own parameters are dynamic_reconfigure's (onInit).
   static const std::set<std::string> dynamic = configParameterNames<LocalizerConfig>();
-  LocalizerParams params;
-  PreprocessingParams ignored;  // the preprocessor's business
+  std::vector<std::pair<std::string, std::string>> given;
   for (const std::string& name : localizerParameterNames())
   {
     XmlRpc::XmlRpcValue value;
-    if (dynamic.count(name) || !private_nh.getParam(name, value))
-      continue;
+    if (!dynamic.count(name) && private_nh.getParam(name, value))
+      given.emplace_back(name, toText(value));
+  }
+  PreprocessingParams ignored;  // the preprocessor's business
+  std::string error;
+  // All together first: some are valid only together (seqslam_min_velocity <= seqslam_max_velocity).
+  LocalizerParams all;
+  bool parsed = true;
+  for (const auto& entry : given)
+    parsed = applyParameter(entry.first, entry.second, &ignored, &all, &error) && parsed;
+  if (parsed && all.validate().empty())
+    return all;
+  // Otherwise one at a time, so that one bad value does not cost the others, in passes until none is
+  // taken (a value refused beside one default may be valid beside another given value); each value
+  // never taken is named.
+  LocalizerParams params;
+  std::vector<bool> taken(given.size(), false);
+  for (bool progress = true; progress;)
+  {
+    progress = false;
+    for (size_t i = 0; i < given.size(); ++i)
+    {
+      LocalizerParams candidate = params;
+      if (!taken[i] && applyParameter(given[i].first, given[i].second, &ignored, &candidate, &error) &&
+          candidate.validate().empty())
+      {
+        params = candidate;
+        taken[i] = progress = true;
+      }
+    }
+  }
+  for (size_t i = 0; i < given.size(); ++i)
+  {
     LocalizerParams candidate = params;
-    std::string error;
-    if (!applyParameter(name, toText(value), &ignored, &candidate, &error))
-      NODELET_ERROR("Ignoring ~%s: %s; it keeps the default", name.c_str(), error.c_str());
-    else if (!(error = candidate.validate()).empty())
-      NODELET_ERROR("Ignoring ~%s = %s: %s; it keeps the default", name.c_str(), toText(value).c_str(),
-                    error.c_str());
+    if (taken[i])
+      continue;
+    if (!applyParameter(given[i].first, given[i].second, &ignored, &candidate, &error))
+      NODELET_ERROR("Ignoring ~%s: %s; it keeps the default", given[i].first.c_str(), error.c_str());
     else
-      params = candidate;
+      NODELET_ERROR("Ignoring ~%s = %s: %s; it keeps the default", given[i].first.c_str(), given[i].second.c_str(),
+                    candidate.validate().c_str());
   }
   return params;
 }
@@ -176,7 +206,8 @@ void LocalizerNodelet::warnAboutUnreadParameters(const ros::NodeHandle& private_
   std::set<std::string> read = configParameterNames<LocalizerConfig>();
   for (const std::string& name : localizerParameterNames())
     read.insert(name);
-  const std::set<std::string> own = { "map", "debug_image_scale", "min_rate", "max_rate", "image_transport" };
+  const std::set<std::string> own = { "map",      "debug_image_scale", "min_rate", "max_rate", "image_transport",
+                                      "diagnostic_period" };
   read.insert(own.begin(), own.end());
   const std::vector<std::string> preprocessing = preprocessingParameterNames();
   for (const std::string& name : unreadParameters(private_nh, read))

@@ -8,6 +8,7 @@
 //             with a new value (see map_io.h)
 // Parameters: cfg/Preprocessor.cfg (dynamic); ~queue_size (static, default 5)
 #include <algorithm>
+#include <array>
 #include <memory>
 #include <set>
 #include <mutex>
@@ -59,8 +60,7 @@ private:
   // Used only from the nodelet's single-threaded callback queue (imageCb) after onInit.
   Preprocessor preprocessor_;
   bool in_place_warned_ = false;
-  std::string last_problem_;  // of the last bad input logged (checkInput), and when
-  ros::WallTime last_problem_time_;
+  std::array<ros::WallTime, 4> last_problem_time_;  // per ImageProblem: when checkInput last logged it
 };
 
 namespace
@@ -172,16 +172,17 @@ void PreprocessorNodelet::announce(const PreprocessingParams& params)
 
 bool PreprocessorNodelet::checkInput(const sensor_msgs::Image& msg, PixelFormat* format)
 {
-  const std::string problem = imageMessageProblem(msg, format);
-  if (problem.empty())
+  std::string problem;
+  const ImageProblem kind = imageMessageProblem(msg, format, &problem);
+  if (kind == ImageProblem::kNone)
     return true;
-  // At most one message per 5 s for the same problem, but a new problem is said at once.
+  // At most one message per 5 s for each kind of problem, so a second kind is said at once.
   const ros::WallTime now = ros::WallTime::now();
-  if (problem != last_problem_ || (now - last_problem_time_).toSec() >= 5.0)
+  ros::WallTime& last = last_problem_time_[static_cast<size_t>(kind)];
+  if (last.isZero() || (now - last).toSec() >= 5.0)
   {
     NODELET_ERROR("Dropping %s", problem.c_str());
-    last_problem_ = problem;
-    last_problem_time_ = now;
+    last = now;
   }
   return false;
 }

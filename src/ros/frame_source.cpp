@@ -148,8 +148,8 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
     if (!msg)
       throw std::runtime_error(where() + ": not a sensor_msgs/Image but " + m.getDataType());
     PixelFormat format;
-    const std::string problem = imageMessageProblem(*msg, &format);
-    if (!problem.empty())
+    std::string problem;
+    if (imageMessageProblem(*msg, &format, &problem) != ImageProblem::kNone)
       throw std::runtime_error(where() + ": " + problem);
     try
     {

@@ -7,14 +7,15 @@
 namespace along_route_localization
 {
 
-std::string imageMessageProblem(const sensor_msgs::Image& msg, PixelFormat* format)
+ImageProblem imageMessageProblem(const sensor_msgs::Image& msg, PixelFormat* format, std::string* sentence)
 {
   std::ostringstream problem;
   if (!pixelFormatFromEncoding(msg.encoding, format))
   {
     problem << msg.width << "x" << msg.height << " image with unsupported encoding '" << msg.encoding
             << "'; accepted encodings: " << supportedEncodings();
-    return problem.str();
+    *sentence = problem.str();
+    return ImageProblem::kEncoding;
   }
   const int channels = sensor_msgs::image_encodings::numChannels(msg.encoding);
   const int bytes_per_pixel = channels * sensor_msgs::image_encodings::bitDepth(msg.encoding) / 8;
@@ -24,14 +25,17 @@ std::string imageMessageProblem(const sensor_msgs::Image& msg, PixelFormat* form
     problem << "malformed '" << msg.encoding << "' image: " << msg.width << "x" << msg.height << " px, step "
             << msg.step << ", " << msg.data.size() << " bytes of data (need width, height > 0, step >= width * "
             << bytes_per_pixel << " and step * height bytes)";
-    return problem.str();
+    *sentence = problem.str();
+    return ImageProblem::kGeometry;
   }
   if (msg.is_bigendian && bytes_per_pixel / channels > 1)
   {
     problem << "big-endian '" << msg.encoding << "' image: only little-endian multi-byte pixels are accepted";
-    return problem.str();
+    *sentence = problem.str();
+    return ImageProblem::kByteOrder;
   }
-  return "";
+  sentence->clear();
+  return ImageProblem::kNone;
 }
 
 }  // namespace along_route_localization

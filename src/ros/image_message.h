@@ -12,10 +12,18 @@
 namespace along_route_localization
 {
 
-/// "" when the message can be wrapped as an image of a supported encoding (then *format is set),
-/// else a sentence saying what is wrong: an unsupported encoding, a geometry its data does not hold
-/// (cv_bridge wraps the buffer without checking it), or big-endian multi-byte pixels.
-std::string imageMessageProblem(const sensor_msgs::Image& msg, PixelFormat* format);
+/// What can be wrong with an image message, by kind (a log throttled per kind still says each kind).
+enum class ImageProblem
+{
+  kNone,
+  kEncoding,   ///< not one the core accepts
+  kGeometry,   ///< a width, height or step its data does not hold (cv_bridge wraps without checking)
+  kByteOrder,  ///< big-endian multi-byte pixels
+};
+
+/// kNone when the message can be wrapped as an image of a supported encoding (then *format is set),
+/// else the kind of problem, with *sentence saying what is wrong with this message.
+ImageProblem imageMessageProblem(const sensor_msgs::Image& msg, PixelFormat* format, std::string* sentence);
 
 }  // namespace along_route_localization
 

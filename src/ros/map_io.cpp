@@ -22,6 +22,7 @@
 #include <ros/names.h>
 #include <rosbag/bag.h>
 #include <rosbag/exceptions.h>
+#include <rosbag/view.h>
 #include <sensor_msgs/image_encodings.h>
 #include <std_msgs/String.h>
 
@@ -563,13 +564,34 @@ void writeMap(const std::string& path, const RouteMap& map)
   writer.close();
 }
 
+namespace
+{
+
+// True for a bag that opens and has no keyframe messages (a writer's probe, or a recording stopped
+// before its first flush); false for one that does not open (cut short while appending: it may hold
+// keyframes that `rosbag reindex` recovers) or holds keyframes.
+bool holdsNoKeyframes(const std::string& bag_path)
+{
+  try
+  {
+    rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
+    return rosbag::View(bag, rosbag::TopicQuery(kMapKeyframesTopic)).size() == 0;
+  }
+  catch (const std::exception&)
+  {
+    return false;
+  }
+}
+
+}  // namespace
+
 void checkMapTarget(const std::string& path)
 {
   if (path.empty())
     throw MapError("no map file given (empty path)");
   const std::string active = path + ".active";
   struct stat info;
-  if (fileExists(active, &info) && info.st_size > 0)
+  if (fileExists(active, &info) && info.st_size > 0 && !holdsNoKeyframes(active))
     throw MapError(inQuotes(active) + " exists: a recording of " + inQuotes(path) +
                    " was interrupted while it was writing, and that file holds its keyframes. Recover it with "
                    "`rosbag reindex " + active + "` and rename it, or move it away, before recording again");
@@ -588,9 +610,11 @@ MapWriter::MapWriter(const std::string& path, const PreprocessingParams& params,
   checkMapTarget(path_);
   try
   {
+    // Can it be written? The probe is removed again: a writer killed before its first flush leaves nothing.
     rosbag::Bag bag;
     bag.open(activePath(), rosbag::bagmode::Write);
     bag.close();
+    std::remove(activePath().c_str());
   }
   catch (const rosbag::BagException& e)
   {

@@ -50,8 +50,9 @@ void writeMap(const std::string& path, const RouteMap& map);
 sensor_msgs::ImagePtr keyframeMessage(const cv::Mat& preprocessed, int64_t stamp_ns,
                                       const std::string& frame_id = std::string());
 
-/// Throws MapError when a map cannot be recorded to `path`: empty, a directory, or a non-empty
-/// `<path>.active` left by an interrupted recording (which holds that recording's keyframes).
+/// Throws MapError when a map cannot be recorded to `path`: empty, a directory, or a `<path>.active`
+/// left by an interrupted recording that may hold its keyframes (one that does not open as a bag, or
+/// holds keyframe messages; an empty bag is no loss and is reused).
 void checkMapTarget(const std::string& path);
 
 /// Writes a map as it is recorded. Not thread-safe: one thread (the recorder's writer thread) owns it.
@@ -65,8 +66,8 @@ void checkMapTarget(const std::string& path);
 class MapWriter
 {
 public:
-  /// Checks that `<path>.active` can be written (creates it empty). Throws MapError, also when a
-  /// non-empty `<path>.active` exists (an interrupted recording's keyframes: it is not overwritten).
+  /// Checks that `<path>.active` can be written (creates and removes it). Throws MapError, also when a
+  /// `<path>.active` that may hold keyframes exists (an interrupted recording's: it is not overwritten).
   MapWriter(const std::string& path, const PreprocessingParams& params,
             const std::string& writer_info = std::string());
   /// close(); errors are logged, not thrown.

@@ -228,14 +228,20 @@ int main(int argc, char** argv)
   {
     // A recorder map carries the preprocessing it was made with, and the queries must be preprocessed
     // the same way: preprocessing parameters given for the run must agree with it.
-    const alr::PreprocessingParams requested = preprocessing;
     map = alr::loadMapFromPath(map_path, topic, &preprocessing);
     if (map->empty())
       throw alr::MapError("the map '" + map_path + "' holds no keyframes");
-    if (preprocessing_given && !(requested == preprocessing))
+    // Only the names given count: the same file and --set applied over the map's parameters.
+    alr::PreprocessingParams given = preprocessing;
+    alr::LocalizerParams unused;
+    if (!params_path.empty())
+      alr::loadParameterFile(params_path, &given, &unused, &error);
+    for (const auto& kv : overrides)
+      alr::applyParameter(kv.first, kv.second, &given, &unused, &error);
+    if (preprocessing_given && !(given == preprocessing))
     {
       std::cerr << "localize_offline: the map file '" << map_path << "' was made with other preprocessing parameters "
-                << "than those given (" << alr::preprocessingDifference(preprocessing, requested)
+                << "than those given (" << alr::preprocessingDifference(preprocessing, given)
                 << ", map vs given); the queries are preprocessed as the map was, so leave them out, or give "
                    "--map the images to preprocess them anew\n";
       return 2;

@@ -240,6 +240,10 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertFails(self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output,
                                          '--set', 'normalization_strength=0.1'),
                          'other preprocessing parameters', 'normalization_strength: 0.2 vs 0.1')
+        # Only names given are compared: sky_fraction 0 agrees with the map; the strength is not given.
+        result = self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output,
+                                 '--set', 'sky_fraction=0')
+        self.assertEqual(result.returncode, 0, result.stderr)
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
                                          '--set', 'output_width=0'), 'invalid preprocessing parameters')
 

@@ -168,6 +168,9 @@ class RobustnessTest(unittest.TestCase):
         rospy.set_param(name + '/map', self.map_path)
         rospy.set_param(name + '/min_init_frames', 25)  # default 5: tracking from about frame 10
         rospy.set_param(name + '/exclusion_radius', -1)
+        # Valid only together (the default minimum is 0.8): both must be taken.
+        rospy.set_param(name + '/seqslam_min_velocity', 0.1)
+        rospy.set_param(name + '/seqslam_max_velocity', 0.5)
         rospy.set_param(name + '/max_step', 0)
         rospy.set_param(name + '/ring_bufer_rows', 10)
         rospy.set_param(name + '/normalization_strength', 0.2)
@@ -180,6 +183,7 @@ class RobustnessTest(unittest.TestCase):
             for text in ('Ignoring ~exclusion_radius = -1', '~max_step = 0 is outside 1 .. ', '~ring_bufer_rows is not a parameter of the localizer',
                          "~normalization_strength is not read here: it is the preprocessor's"):
                 fx.wait_for(lambda: self.rosout.matching(text), 10, 'a message starting %r' % text)
+            self.assertEqual(self.rosout.matching('Ignoring ~seqslam'), [])
             fx.wait_for(lambda: self.camera.get_num_connections() > 0, 10, 'the preprocessor')
             time.sleep(1.0)  # the new localizer's subscription to image_preprocessed
             sent = [self.good(i) for i in range(FRAMES)]

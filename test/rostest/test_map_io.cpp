@@ -130,7 +130,7 @@ TEST_F(MapIoTest, EachFlushLeavesACompleteMapUnderTheFinalName)
   const std::string file = writeTestMap("map.bag", 3);  // an older map under the same name
   cv::RNG rng(1);
   MapWriter writer(file, PreprocessingParams());
-  EXPECT_TRUE(exists(file + ".active"));
+  EXPECT_FALSE(exists(file + ".active")) << "the writability probe is removed";
   EXPECT_EQ(readMap(file).size(), 3u) << "the old map stays until the first keyframe is flushed";
 
   for (int k = 0; k < 4; ++k)
@@ -197,11 +197,35 @@ TEST_F(MapIoTest, AnInterruptedRecordingIsNotOverwritten)
   EXPECT_EQ(readAll(file + ".active"), interrupted);
   EXPECT_THROW(checkMapTarget(file), MapError);
 
-  // An empty one (a recorder that stopped before its first flush) holds nothing and is reused.
+  // One that is a bag with keyframes (killed between appending and renaming) is refused too.
+  writeTestMap("route.bag.active", 2);
+  EXPECT_THROW(checkMapTarget(file), MapError);
+
+  // Empty files and bags without keyframes hold nothing and are reused.
   writeAll(file + ".active", "");
+  EXPECT_NO_THROW(checkMapTarget(file));
+  {
+    rosbag::Bag header_only(file + ".active", rosbag::bagmode::Write);
+  }
   EXPECT_NO_THROW(checkMapTarget(file));
   EXPECT_NO_THROW(MapWriter(file, PreprocessingParams()));
   EXPECT_THROW(checkMapTarget(dir_), MapError) << "a directory";
+
+  // A recorder killed before its first flush leaves nothing in the way of the next one.
+  std::remove((file + ".active").c_str());
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0)
+  {
+    cv::RNG rng(3);
+    MapWriter writer(file, PreprocessingParams());
+    writer.add(keyframeMessage(randomKeyframe(rng), 1));
+    raise(SIGKILL);
+    _exit(0);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  EXPECT_NO_THROW(checkMapTarget(file));
 }
 
 TEST_F(MapIoTest, AKilledWriterLeavesEverythingUpToTheLastFlush)
