@@ -29,9 +29,9 @@ std::vector<std::string> localizerParameterNames();
 /// entry. The entries of a "map_recorder:" section are skipped, so the launch files' params_file (sections
 /// preprocessor:, map_recorder:, localizer:) can be given as it is. Returns false with *error naming the
 /// file and line on the first problem, also for a name given twice. Booleans: true/false, yes/no, on/off
-/// (as YAML 1.1 and rosparam read them), 1/0. `names`, if given, receives the names applied.
+/// (as YAML 1.1 and rosparam read them), 1/0.
 bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,
-                       std::string* error, std::vector<std::string>* names = nullptr);
+                       std::string* error);
 
 }  // namespace along_route_localization
 

@@ -217,7 +217,7 @@ std::vector<std::string> parameterNames()
 }
 
 bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,
-                       std::string* error, std::vector<std::string>* names)
+                       std::string* error)
 {
   std::ifstream in(path);
   if (!in)
@@ -269,8 +269,6 @@ bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessi
                std::to_string(earlier.first->second) + "; give each parameter once";
       return false;
     }
-    if (names)
-      names->push_back(name);
   }
   return true;
 }

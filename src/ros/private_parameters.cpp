@@ -12,13 +12,12 @@ std::vector<std::string> unreadParameters(const ros::NodeHandle& private_nh, con
   if (!private_nh.getParamNames(all))
     return unread;
   const std::string prefix = private_nh.getNamespace() + "/";
-  std::set<std::string> seen;
-  for (const std::string& key : all)
+  for (const std::string& key : all)  // each name once: they are the parameter server's keys
   {
     if (key.compare(0, prefix.size(), prefix) != 0)
       continue;
     const std::string name = key.substr(prefix.size());
-    if (name.empty() || name.find('/') != std::string::npos || read.count(name) || !seen.insert(name).second)
+    if (name.empty() || name.find('/') != std::string::npos || read.count(name))
       continue;
     unread.push_back(name);
   }

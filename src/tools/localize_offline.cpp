@@ -161,9 +161,7 @@ int main(int argc, char** argv)
   alr::PreprocessingParams preprocessing;
   alr::LocalizerParams localizer_params;
   std::string error;
-  std::vector<std::string> names_given;
-  if (!params_path.empty() &&
-      !alr::loadParameterFile(params_path, &preprocessing, &localizer_params, &error, &names_given))
+  if (!params_path.empty() && !alr::loadParameterFile(params_path, &preprocessing, &localizer_params, &error))
   {
     std::cerr << "localize_offline: " << error << "\n";
     return 2;
@@ -175,12 +173,7 @@ int main(int argc, char** argv)
       std::cerr << "localize_offline: --set: " << error << "\n";
       return 2;
     }
-    names_given.push_back(kv.first);
   }
-  const std::vector<std::string> preprocessing_names = alr::preprocessingParameterNames();
-  const bool preprocessing_given = std::any_of(names_given.begin(), names_given.end(), [&](const std::string& name) {
-    return std::find(preprocessing_names.begin(), preprocessing_names.end(), name) != preprocessing_names.end();
-  });
   const std::string invalid_preprocessing = preprocessing.validate();
   if (!invalid_preprocessing.empty())
   {
@@ -231,14 +224,15 @@ int main(int argc, char** argv)
     map = alr::loadMapFromPath(map_path, topic, &preprocessing);
     if (map->empty())
       throw alr::MapError("the map '" + map_path + "' holds no keyframes");
-    // Only the names given count: the same file and --set applied over the map's parameters.
+    // Only the names given count: the same file and --set applied over the map's parameters (with no
+    // preprocessing name among them, that leaves the map's parameters as they are).
     alr::PreprocessingParams given = preprocessing;
     alr::LocalizerParams unused;
     if (!params_path.empty())
       alr::loadParameterFile(params_path, &given, &unused, &error);
     for (const auto& kv : overrides)
       alr::applyParameter(kv.first, kv.second, &given, &unused, &error);
-    if (preprocessing_given && !(given == preprocessing))
+    if (!(given == preprocessing))
     {
       std::cerr << "localize_offline: the map file '" << map_path << "' was made with other preprocessing parameters "
                 << "than those given (" << alr::preprocessingDifference(preprocessing, given)
