@@ -3,7 +3,6 @@
 #include <sys/stat.h>
 
 #include <algorithm>
-#include <fstream>
 #include <map>
 #include <set>
 #include <sstream>
@@ -117,14 +116,21 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
   catch (const std::exception& e)
   {
     // rosbag's own words ("wanted 4 bytes, read 0 bytes") do not say what is wrong with the file.
-    std::ifstream file(path, std::ios::binary);
-    std::string head(13, '\0');
-    file.read(&head[0], static_cast<std::streamsize>(head.size()));
-    head.resize(static_cast<size_t>(file.gcount()));
-    if (head.empty())
-      throw std::runtime_error("'" + path + "' is empty (0 bytes): neither a bag nor a map file");
-    if (head != "#ROSBAG V2.0\n")
-      throw std::runtime_error("'" + path + "' is not a bag or map file (nor a folder of images)");
+    switch (bagFileHead(path))
+    {
+      case BagFileHead::kEmpty:
+        throw std::runtime_error("'" + path + "' is empty (0 bytes): neither a bag nor a map file");
+      case BagFileHead::kNotABag:
+        throw std::runtime_error("'" + path + "' is not a bag or map file (nor a folder of images)");
+      case BagFileHead::kOtherVersion:
+        throw std::runtime_error("'" + path + "' is a rosbag of another format version than 2.0");
+      case BagFileHead::kCutInHeader:
+        throw std::runtime_error("'" + path + "' is cut short inside the bag header (" +
+                                 std::to_string(fs::file_size(path)) +
+                                 " bytes): nothing to recover");
+      case BagFileHead::kRosbag2:
+        break;
+    }
     throw std::runtime_error("bag '" + path + "' cannot be read, probably cut short (a recording that was "
                              "interrupted?): `rosbag reindex " + path + "` may recover it. rosbag says: " + e.what());
   }

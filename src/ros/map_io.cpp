@@ -89,22 +89,22 @@ void checkMapFile(const std::string& path)
   if (info.st_size == 0)
     throw MapError("map file " + inQuotes(path) + " is empty (0 bytes)");
 
-  std::ifstream file(path, std::ios::binary);
-  if (!file)
+  if (!std::ifstream(path, std::ios::binary))
     throw MapError("map file " + inQuotes(path) + " cannot be opened: " + std::strerror(errno));
-  const std::string magic = "#ROSBAG V2.0\n";
-  std::string head(magic.size(), '\0');
-  file.read(&head[0], static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<size_t>(file.gcount()));
-  if (head != magic)
+  switch (bagFileHead(path))
   {
-    if (head.compare(0, 9, "#ROSBAG V") == 0)
+    case BagFileHead::kRosbag2:
+    case BagFileHead::kEmpty:  // not 0 bytes (above): the file changed under us, and the reader will say so
+      return;
+    case BagFileHead::kOtherVersion:
       throw MapError("map file " + inQuotes(path) + " is a rosbag of another format version than 2.0");
-    if (magic.compare(0, head.size(), head) == 0)
-      throw MapError("map file " + inQuotes(path) + " is truncated (" + std::to_string(head.size()) +
+    case BagFileHead::kCutInHeader:
+      throw MapError("map file " + inQuotes(path) + " is truncated (" + std::to_string(info.st_size) +
                      " bytes, not even a bag header)");
-    throw MapError("map file " + inQuotes(path) + " is not a rosbag (no '#ROSBAG V2.0' header): not a map file");
+    case BagFileHead::kNotABag:
+      break;
   }
+  throw MapError("map file " + inQuotes(path) + " is not a rosbag (no '#ROSBAG V2.0' header): not a map file");
 }
 
 // The map reader walks the bag's records in file order instead of using rosbag's reader: a map file
@@ -464,6 +464,22 @@ std::string preprocessingDifference(const PreprocessingParams& a, const Preproce
   if (difference.empty() && a != b)
     difference = "'" + a.serialize() + "' vs '" + b.serialize() + "'";
   return difference;
+}
+
+BagFileHead bagFileHead(const std::string& path)
+{
+  static const std::string magic = "#ROSBAG V2.0\n";
+  std::ifstream file(path, std::ios::binary);
+  std::string head(magic.size(), '\0');
+  file.read(&head[0], static_cast<std::streamsize>(head.size()));
+  head.resize(file ? head.size() : static_cast<size_t>(std::max<std::streamsize>(file.gcount(), 0)));
+  if (head.empty())
+    return BagFileHead::kEmpty;
+  if (head == magic)
+    return BagFileHead::kRosbag2;
+  if (head.compare(0, 9, "#ROSBAG V") == 0)
+    return BagFileHead::kOtherVersion;
+  return magic.compare(0, head.size(), head) == 0 ? BagFileHead::kCutInHeader : BagFileHead::kNotABag;
 }
 
 RouteMap readMap(const std::string& path)

@@ -37,6 +37,19 @@ std::string preprocessingParamsTopic(const std::string& resolved_image_topic);
 /// "output_width: 64 vs 32, sky_fraction: 0 vs 0.25" -- the fields whose serialized values differ.
 std::string preprocessingDifference(const PreprocessingParams& a, const PreprocessingParams& b);
 
+/// What a file's first bytes say it is, for errors that name the problem (rosbag's own, such as "wanted
+/// 4 bytes, read 0 bytes", do not): empty, a rosbag 2.0, a rosbag of another version, cut short inside the
+/// 13-byte bag header, or something else. An unreadable file counts as empty.
+enum class BagFileHead
+{
+  kEmpty,
+  kRosbag2,
+  kOtherVersion,
+  kCutInHeader,
+  kNotABag
+};
+BagFileHead bagFileHead(const std::string& path);
+
 /// Reads a map file. Throws MapError with a sentence naming the file and what is wrong: missing,
 /// empty, not a bag, truncated or corrupt (with the `rosbag reindex` hint for an interrupted write),
 /// no or unparsable preprocessing parameters, no keyframes, keyframes of another encoding or size

@@ -168,6 +168,18 @@ class LocalizeOfflineTest(unittest.TestCase):
                          'probably cut short', 'rosbag reindex %s' % cut)
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', foreign, '--output', output),
                          "'%s' is not a bag or map file" % foreign)
+        # A file that ends inside the 13-byte bag header holds nothing to reindex; a bag of format 1.2
+        # is a bag, but not one rosbag 2.0 reads.
+        stub = os.path.join(self.tmp, 'stub.bag')
+        with open(stub, 'wb') as f:
+            f.write(content[:7])
+        old = os.path.join(self.tmp, 'old.bag')
+        with open(old, 'wb') as f:
+            f.write(b'#ROSBAG V1.2\n' + content[13:])
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', stub, '--output', output),
+                         "'%s' is cut short inside the bag header (7 bytes)" % stub)
+        self.assertFails(self.run_runner('--map', old, '--query', self.map_dir, '--output', output),
+                         "'%s' is a rosbag of another format version than 2.0" % old)
 
     def test_unwritable_output(self):
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output',
