@@ -191,20 +191,27 @@ bool applyParameter(const std::string& name, const std::string& value, Preproces
   return true;
 }
 
-std::vector<std::string> preprocessingParameterNames()
+namespace
+{
+
+std::vector<std::string> namesOf(const std::map<std::string, Setter>& setters)
 {
   std::vector<std::string> names;
-  for (const auto& entry : preprocessingSetters())
+  for (const auto& entry : setters)
     names.push_back(entry.first);
   return names;
 }
 
+}  // namespace
+
+std::vector<std::string> preprocessingParameterNames()
+{
+  return namesOf(preprocessingSetters());
+}
+
 std::vector<std::string> localizerParameterNames()
 {
-  std::vector<std::string> names;
-  for (const auto& entry : localizerSetters())
-    names.push_back(entry.first);
-  return names;
+  return namesOf(localizerSetters());
 }
 
 std::vector<std::string> parameterNames()

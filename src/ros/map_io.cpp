@@ -472,7 +472,7 @@ BagFileHead bagFileHead(const std::string& path)
   std::ifstream file(path, std::ios::binary);
   std::string head(magic.size(), '\0');
   file.read(&head[0], static_cast<std::streamsize>(head.size()));
-  head.resize(file ? head.size() : static_cast<size_t>(std::max<std::streamsize>(file.gcount(), 0)));
+  head.resize(static_cast<size_t>(file.gcount()));  // 0 when the file does not open
   if (head.empty())
     return BagFileHead::kEmpty;
   if (head == magic)
