@@ -173,8 +173,8 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
   return frames;
 }
 
-/// A recorder map file is a bag with the map's parameter topic.
-bool isMapFile(const std::string& path)
+/// A recorder map file is a bag with the map's parameter topic. The map when `path` is one, else null.
+std::shared_ptr<RouteMap> readIfMapFile(const std::string& path)
 {
   rosbag::Bag bag;
   try
@@ -183,10 +183,25 @@ bool isMapFile(const std::string& path)
   }
   catch (const std::exception&)
   {
-    return false;  // let the image reader report why the file cannot be read
+    // rosbag needs the index at the end of the file; the map reader walks the records and also reads a
+    // map whose index was never written (copied or written while the disk filled up). Anything else is
+    // left to the image reader to report.
+    if (bagFileHead(path) != BagFileHead::kRosbag2)
+      return nullptr;
+    try
+    {
+      return std::make_shared<RouteMap>(readMap(path));
+    }
+    catch (const MapError&)
+    {
+      return nullptr;
+    }
   }
   rosbag::View view(bag, rosbag::TopicQuery(kMapPreprocessingTopic));
-  return view.size() > 0;
+  if (view.size() == 0)
+    return nullptr;
+  bag.close();
+  return std::make_shared<RouteMap>(readMap(path));
 }
 
 bool isDirectory(const std::string& path)
@@ -230,12 +245,12 @@ std::vector<cv::Mat> loadPreprocessedFrames(const std::string& path, const std::
 std::shared_ptr<RouteMap> loadMapFromPath(const std::string& path, const std::string& topic, PreprocessingParams* params)
 {
   requireExists(path);
-  if (!isDirectory(path) && isMapFile(path))
-  {
-    auto map = std::make_shared<RouteMap>(readMap(path));
-    *params = map->params();
-    return map;
-  }
+  if (!isDirectory(path))
+    if (std::shared_ptr<RouteMap> map = readIfMapFile(path))
+    {
+      *params = map->params();
+      return map;
+    }
   auto map = std::make_shared<RouteMap>(*params);
   std::vector<int64_t> stamps;
   std::vector<cv::Mat> frames;

@@ -23,6 +23,20 @@ from scripts_under_test import built_executable  # noqa: E402
 RUNNER = built_executable('localize_offline')
 
 
+def bag_header_field(content, name):
+    """A u64 field of a rosbag 2.0 file's bag header record (the record right after '#ROSBAG V2.0\\n')."""
+    assert content[:13] == b'#ROSBAG V2.0\n'
+    header_length = int.from_bytes(content[13:17], 'little')
+    header, at = content[17:17 + header_length], 0
+    while at < len(header):
+        field_length = int.from_bytes(header[at:at + 4], 'little')
+        key, _, value = header[at + 4:at + 4 + field_length].partition(b'=')
+        if key == name:
+            return int.from_bytes(value, 'little')
+        at += 4 + field_length
+    raise KeyError(name)
+
+
 @unittest.skipIf(RUNNER is None or cv2 is None,
                  'localize_offline not built in a sourced workspace (source devel/setup.bash), or no cv2')
 class LocalizeOfflineTest(unittest.TestCase):
@@ -180,6 +194,34 @@ class LocalizeOfflineTest(unittest.TestCase):
                          "'%s' is cut short inside the bag header (7 bytes)" % stub)
         self.assertFails(self.run_runner('--map', old, '--query', self.map_dir, '--output', output),
                          "'%s' is a rosbag of another format version than 2.0" % old)
+
+    def test_a_map_file_without_its_index_is_read_as_a_map(self):
+        # rosbag reads a bag from the index at its end; a map file cut off at the index (copied or written
+        # while the disk filled up) holds every keyframe, and the map reader walks its records. The run
+        # on it must give every row as on the whole file. Cut inside a keyframe, the file names the cut.
+        map_file = os.path.join(self.tmp, 'indexed.map')
+        whole = os.path.join(self.tmp, 'indexed.csv')
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', whole,
+                                 '--save-map', map_file)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        with open(map_file, 'rb') as f:
+            content = f.read()
+        index_pos = bag_header_field(content, b'index_pos')
+        self.assertGreater(index_pos, 40 * 64 * 32)
+        self.assertLess(index_pos, len(content))
+        unindexed = os.path.join(self.tmp, 'unindexed.map')
+        with open(unindexed, 'wb') as f:
+            f.write(content[:index_pos])
+        output = os.path.join(self.tmp, 'unindexed.csv')
+        result = self.run_runner('--map', unindexed, '--query', self.map_dir, '--output', output)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        with open(whole) as a, open(output) as b:
+            self.assertEqual(a.read(), b.read())
+        cut = os.path.join(self.tmp, 'cut.map')
+        with open(cut, 'wb') as f:
+            f.write(content[:index_pos // 2])
+        self.assertFails(self.run_runner('--map', cut, '--query', self.map_dir, '--output', output),
+                         'probably cut short', 'rosbag reindex %s' % cut)
 
     def test_unwritable_output(self):
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output',
