@@ -93,12 +93,8 @@ class LocalizeOfflineTest(unittest.TestCase):
     def test_saved_map_gives_the_same_results_as_its_images(self):
         # --save-map writes the loaded map in the recorder's format; run again on that file, every row
         # must be the same as with the folder of images (the file holds the preprocessed keyframes).
-        map_file = os.path.join(self.tmp, 'saved.map')
-        from_images = os.path.join(self.tmp, 'from_images.csv')
+        map_file, from_images = self.save_map('saved')
         from_file = os.path.join(self.tmp, 'from_file.csv')
-        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', from_images,
-                                 '--save-map', map_file)
-        self.assertEqual(result.returncode, 0, result.stderr)
         self.assertGreater(os.path.getsize(map_file), 40 * 64 * 32)
         result = self.run_runner('--map', map_file, '--query', self.map_dir, '--output', from_file)
         self.assertEqual(result.returncode, 0, result.stderr)
@@ -106,6 +102,15 @@ class LocalizeOfflineTest(unittest.TestCase):
             self.assertEqual(a.read(), b.read())
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', from_file,
                                          '--save-map', '/no/such/dir/saved.map'), '--save-map', '/no/such/dir')
+
+    def save_map(self, name, *options):
+        """Runs the map folder against itself with --save-map; returns (map file, results csv)."""
+        map_file = os.path.join(self.tmp, name + '.map')
+        output = os.path.join(self.tmp, name + '.csv')
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
+                                 '--save-map', map_file, *options)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        return map_file, output
 
     def assertFails(self, result, *fragments):
         self.assertNotEqual(result.returncode, 0)
@@ -199,11 +204,7 @@ class LocalizeOfflineTest(unittest.TestCase):
         # rosbag reads a bag from the index at its end; a map file cut off at the index (copied or written
         # while the disk filled up) holds every keyframe, and the map reader walks its records. The run
         # on it must give every row as on the whole file. Cut inside a keyframe, the file names the cut.
-        map_file = os.path.join(self.tmp, 'indexed.map')
-        whole = os.path.join(self.tmp, 'indexed.csv')
-        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', whole,
-                                 '--save-map', map_file)
-        self.assertEqual(result.returncode, 0, result.stderr)
+        map_file, whole = self.save_map('indexed')
         with open(map_file, 'rb') as f:
             content = f.read()
         index_pos = bag_header_field(content, b'index_pos')
@@ -231,11 +232,7 @@ class LocalizeOfflineTest(unittest.TestCase):
         # Results are written beside the output and renamed over it at the end, parameters are checked
         # before anything is written, and no output may name an input: a results file written over the
         # query bag, or truncated by a run that then refused its parameters, was lost.
-        keep = os.path.join(self.tmp, 'keep.csv')
-        map_file = os.path.join(self.tmp, 'keep.map')
-        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', keep,
-                                 '--save-map', map_file)
-        self.assertEqual(result.returncode, 0, result.stderr)
+        map_file, keep = self.save_map('keep')
         with open(keep) as f:
             results = f.read()
         with open(map_file, 'rb') as f:
@@ -281,11 +278,7 @@ class LocalizeOfflineTest(unittest.TestCase):
         # A map file's keyframes were preprocessed with its stored parameters; a query preprocessed with
         # others would be compared with them all the same. Given and equal: runs; given and different:
         # refused, naming the difference; invalid: refused before anything is loaded.
-        map_file = os.path.join(self.tmp, 'strength.map')
-        output = os.path.join(self.tmp, 'strength.csv')
-        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
-                                 '--set', 'normalization_strength=0.2', '--save-map', map_file)
-        self.assertEqual(result.returncode, 0, result.stderr)
+        map_file, output = self.save_map('strength', '--set', 'normalization_strength=0.2')
         result = self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output,
                                  '--set', 'normalization_strength=0.2')
         self.assertEqual(result.returncode, 0, result.stderr)
