@@ -71,6 +71,7 @@ private:
   ros::ServiceServer load_map_srv_;
   std::shared_ptr<diagnostic_updater::Updater> updater_;
   std::shared_ptr<diagnostic_updater::FrequencyStatus> rate_status_;
+  ros::Time diagnostics_time_;  // ROS time at the last diagnostics timer event (only that callback uses it)
   ros::WallTimer diagnostics_timer_;
 
   // Written by configCb, copied by imageCb; guarded by config_mutex_ (also the server's mutex).
@@ -276,8 +277,15 @@ void LocalizerNodelet::onInit()
       diagnostic_updater::FrequencyStatusParam(&min_rate_hz_, &max_rate_hz_), "localization rate");
   updater_->add(*rate_status_);
   updater_->add("localization", this, &LocalizerNodelet::diagnose);
+  // The updater publishes when ROS time has passed its last publication + its period. A looping bag
+  // played with --clock sends ROS time back; without force_update() it would wait for the old time.
   diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(0.25), [this](const ros::WallTimerEvent&) {
-    updater_->update();
+    const ros::Time now = ros::Time::now();
+    if (now < diagnostics_time_)
+      updater_->force_update();
+    else
+      updater_->update();
+    diagnostics_time_ = now;
   });
 
   localization_pub_ = nh.advertise<Localization>("localization", 10);

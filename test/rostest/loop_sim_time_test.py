@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """rosbag play --clock --loop under /use_sim_time: at each loop the stamps jump back; the localizer says
-so, restarts (status initializing), and tracks the route again on the next pass."""
+so, restarts (status initializing), tracks the route again on the next pass, and keeps publishing its
+diagnostics although ROS time went back."""
 
 import os
 import shutil
@@ -11,6 +12,7 @@ import unittest
 
 import rospy
 import rostest
+from diagnostic_msgs.msg import DiagnosticArray
 
 from along_route_localization.msg import Localization
 import route_fixture as fx
@@ -35,6 +37,7 @@ class LoopSimTimeTest(unittest.TestCase):
                                            play_extra=['--clock'])
         assert finish.success, finish.message
         assert loaded.success, loaded.message
+        cls.diagnostics = fx.Collector('/diagnostics', DiagnosticArray, queue_size=10000)
 
         player = subprocess.Popen(['rosbag', 'play', '-q', '-d', '1', '--clock', '--loop',
                                    os.path.join(cls.tmp, 'repeat.bag'), fx.CAMERA_TOPIC + ':=/repeat_camera/image_raw'],
@@ -49,6 +52,8 @@ class LoopSimTimeTest(unittest.TestCase):
                 player.kill()
                 player.wait(5)
         cls.answers = cls.localizations.take()
+        cls.localizer_diagnostics = [d for d in cls.diagnostics.take()
+                                     if any('localization' in status.name for status in d.status)]
 
     @classmethod
     def tearDownClass(cls):
@@ -71,6 +76,20 @@ class LoopSimTimeTest(unittest.TestCase):
             self.assertGreaterEqual(len(tracked), 0.7 * len(loop))
             close = [m for m in tracked if abs(m.keyframe - self.truth[index[m.header.stamp]]) <= 2]
             self.assertGreaterEqual(len(close), 0.9 * len(tracked))
+
+    def test_diagnostics_go_on_after_time_went_back(self):
+        # The diagnostics are stamped with ROS time, here the bag's clock. Split where that clock went
+        # back: at least two passes of the repeat drive must each hold diagnostics.
+        first, last = self.repeat[0].header.stamp, self.repeat[-1].header.stamp
+        passes, previous = [], None
+        for d in self.localizer_diagnostics:
+            if previous is None or d.header.stamp < previous:
+                passes.append([])
+            previous = d.header.stamp
+            if first <= d.header.stamp <= last:
+                passes[-1].append(d)
+        self.assertGreaterEqual(len([p for p in passes if len(p) >= 2]), 2,
+                                'diagnostics per pass of the drive: %s' % [len(p) for p in passes])
 
 
 if __name__ == '__main__':
