@@ -305,17 +305,27 @@ void LocalizerNodelet::configCb(LocalizerConfig& config, uint32_t /*level*/)
 {
   // Corrections, so the panel shows the values in use.
   if (config.search_radius < config.max_step)
+  {
+    NODELET_WARN("search_radius %d is below max_step %d; using %d", config.search_radius, config.max_step,
+                 config.max_step);
     config.search_radius = config.max_step;
+  }
   if (config.lost_window_frames < config.lost_after_frames)
+  {
+    NODELET_WARN("lost_window_frames %d is below lost_after_frames %d; using %d", config.lost_window_frames,
+                 config.lost_after_frames, config.lost_after_frames);
     config.lost_window_frames = config.lost_after_frames;
+  }
   if (map_width_ > 0 && config.max_shift_px > largestShiftFor(map_width_))
   {
     NODELET_WARN("max_shift_px %d leaves nothing to compare in %d px wide images; using %d", config.max_shift_px,
                  map_width_, largestShiftFor(map_width_));
     config.max_shift_px = largestShiftFor(map_width_);
   }
-  const LocalizerParams params = toParams(config, requested_params_);
-  const std::string invalid = params.validate();
+  std::string invalid;
+  const LocalizerParams params = toParams(config, requested_params_, &invalid);
+  if (invalid.empty())
+    invalid = params.validate();
   if (!invalid.empty())
   {
     NODELET_ERROR("Rejected localizer parameters: %s; keeping the previous ones", invalid.c_str());

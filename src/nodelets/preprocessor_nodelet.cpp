@@ -151,8 +151,10 @@ void PreprocessorNodelet::configCb(PreprocessorConfig& config, uint32_t /*level*
                  config.output_width, config.output_height, divisor);
     config.patch_size = divisor;
   }
-  const PreprocessingParams params = toParams(config);
-  const std::string invalid = params.validate();
+  std::string invalid;
+  const PreprocessingParams params = toParams(config, &invalid);
+  if (invalid.empty())
+    invalid = params.validate();
   if (!invalid.empty())
   {
     NODELET_ERROR("Rejected preprocessing parameters: %s; keeping the previous ones", invalid.c_str());

@@ -5,13 +5,17 @@
 namespace along_route_localization
 {
 
-PreprocessingParams toParams(const PreprocessorConfig& config)
+PreprocessingParams toParams(const PreprocessorConfig& config, std::string* problem)
 {
   PreprocessingParams params;
   params.output_width = config.output_width;
   params.output_height = config.output_height;
   if (!normalizationFromString(config.normalization, &params.normalization))
+  {
     params.normalization = NormalizationMethod::kPatch;
+    if (problem)
+      *problem = "normalization must be 'patch' or 'divisive', got '" + config.normalization + "'";
+  }
   params.patch_size = config.patch_size;
   params.min_patch_std = config.min_patch_std;
   params.filter_window = config.filter_window;
@@ -21,10 +25,14 @@ PreprocessingParams toParams(const PreprocessorConfig& config)
   return params;
 }
 
-LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams params)
+LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams params, std::string* problem)
 {
   if (!sequenceMethodFromString(config.method, &params.method))
+  {
     params.method = SequenceMethod::kOnlineDtw;
+    if (problem)
+      *problem = "method must be 'dtw' or 'seqslam', got '" + config.method + "'";
+  }
   params.ring_buffer_rows = config.ring_buffer_rows;
   params.dtw.max_step = config.max_step;
   params.max_shift_px = config.max_shift_px;

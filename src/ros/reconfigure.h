@@ -3,6 +3,8 @@
 #ifndef ALONG_ROUTE_LOCALIZATION_ROS_RECONFIGURE_H
 #define ALONG_ROUTE_LOCALIZATION_ROS_RECONFIGURE_H
 
+#include <string>
+
 #include "along_route_localization/LocalizerConfig.h"
 #include "along_route_localization/PreprocessorConfig.h"
 #include "along_route_localization/localizer.h"
@@ -11,12 +13,14 @@
 namespace along_route_localization
 {
 
-/// Every field of PreprocessingParams comes from the config (an unknown normalization name: patch).
-PreprocessingParams toParams(const PreprocessorConfig& config);
+/// Every field of PreprocessingParams comes from the config. dynamic_reconfigure does not hold a string
+/// to its enum: an unknown normalization name becomes patch and, when `problem` is given, is named there.
+PreprocessingParams toParams(const PreprocessorConfig& config, std::string* problem = nullptr);
 
 /// The fields Localizer.cfg exposes come from the config, the others from `base` (static parameters).
-/// horizontal_fov_deg becomes horizontal_fov_rad; an unknown method name becomes dtw.
-LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams base);
+/// horizontal_fov_deg becomes horizontal_fov_rad; an unknown method name becomes dtw and, when `problem`
+/// is given, is named there.
+LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams base, std::string* problem = nullptr);
 
 }  // namespace along_route_localization
 

@@ -37,6 +37,7 @@ class RepeatTest(unittest.TestCase):
         cls.truth = fx.read_ground_truth(os.path.join(cls.tmp, 'ground_truth.csv'))
         cls.localizations = fx.Collector('/repeat/localization', Localization)
         cls.debug_images = fx.Collector('/repeat/localization_debug_image', Image)
+        cls.rosout = fx.RosoutCollector()
         # Teach, then load the map into the running localizer; a missing map is refused and the
         # loaded one kept.
         cls.finish, cls.loaded = fx.teach_and_load(os.path.join(cls.tmp, 'teach.bag'), FRAMES, cls.map_path)
@@ -53,6 +54,8 @@ class RepeatTest(unittest.TestCase):
                                                                'lost_after_frames': 12, 'lost_window_frames': 4})
         cls.reconfigure.update_configuration({'max_shift_px': 4, 'max_step': 2, 'search_radius': 40,
                                               'lost_after_frames': 6, 'lost_window_frames': 8})
+        # A misspelt method name is rejected with the previous values kept, not run as another method.
+        cls.misspelt = cls.reconfigure.update_configuration({'method': 'seqslm', 'max_step': 3})
 
         # Second drive: the teach images again, with their own stamps, so time goes back as when a bag
         # loops (the localizer restarts); frames 40..79 shifted right by 2 px (camera yawed left). Half
@@ -116,6 +119,18 @@ class RepeatTest(unittest.TestCase):
         self.assertEqual(self.corrected['max_shift_px'], 31)   # (64 - 1) // 2 leaves one compared column
         self.assertEqual(self.corrected['search_radius'], 3)   # at least max_step
         self.assertEqual(self.corrected['lost_window_frames'], 12)  # at least lost_after_frames
+
+    def test_a_misspelt_method_is_rejected_and_named(self):
+        self.assertEqual(self.misspelt['method'], 'dtw')
+        self.assertEqual(self.misspelt['max_step'], 2)  # the whole change is rejected, as for any bad value
+        fx.wait_for(lambda: self.rosout.matching("method must be 'dtw' or 'seqslam', got 'seqslm'"), 10,
+                    'the rejection in the log')
+        self.assertTrue(self.rosout.matching('keeping the previous ones'))
+
+    def test_out_of_range_corrections_are_logged(self):
+        fx.wait_for(lambda: self.rosout.matching('search_radius 1 is below max_step 3; using 3'), 10,
+                    'the search_radius correction in the log')
+        self.assertTrue(self.rosout.matching('lost_window_frames 4 is below lost_after_frames 12; using 12'))
 
     def test_ring_buffer_rows_change_mid_stream(self):
         self.assertEqual(self.reconfigured['ring_buffer_rows'], 10)

@@ -57,3 +57,24 @@ TEST(Reconfigure, LocalizerFieldsTheCfgDoesNotHaveComeFromTheBase)
   EXPECT_NEAR(M_PI / 2, params.horizontal_fov_rad, 1e-12);
   EXPECT_EQ(arl::SequenceMethod::kOnlineDtw, params.method);
 }
+
+TEST(Reconfigure, AnUnknownEnumNameIsNamedSoTheNodeletCanRejectIt)
+{
+  // dynparam and rqt_reconfigure send any string for an enum parameter; a misspelt one must not pass
+  // for another setting without a word.
+  arl::LocalizerConfig localizer = arl::LocalizerConfig::__getDefault__();
+  std::string problem;
+  arl::toParams(localizer, arl::LocalizerParams(), &problem);
+  EXPECT_EQ("", problem);
+  localizer.method = "seqslm";
+  arl::toParams(localizer, arl::LocalizerParams(), &problem);
+  EXPECT_EQ("method must be 'dtw' or 'seqslam', got 'seqslm'", problem);
+
+  arl::PreprocessorConfig preprocessor = arl::PreprocessorConfig::__getDefault__();
+  problem.clear();
+  arl::toParams(preprocessor, &problem);
+  EXPECT_EQ("", problem);
+  preprocessor.normalization = "divisve";
+  arl::toParams(preprocessor, &problem);
+  EXPECT_EQ("normalization must be 'patch' or 'divisive', got 'divisve'", problem);
+}
