@@ -178,9 +178,8 @@ void MapRecorderNodelet::onInit()
   }
   struct stat existing;
   if (writer_error_.empty() && ::stat(map_path_.c_str(), &existing) == 0)
-    NODELET_WARN("Map %s exists; when the first keyframe is written it is renamed to %s.replaced-<its time>, "
-                 "not overwritten",
-                 map_path_.c_str(), map_path_.c_str());
+    NODELET_WARN("Map %s exists; when the first keyframe is written it is renamed to %s, not overwritten",
+                 map_path_.c_str(), replacedMapPath(map_path_, existing.st_mtime).c_str());
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     state_ = autostart ? State::kRecording : State::kIdle;

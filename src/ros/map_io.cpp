@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -41,27 +42,6 @@ bool fileExists(const std::string& path, struct stat* info)
   return ::stat(path.c_str(), info) == 0;
 }
 
-// The name under which a map file that a new recording replaces is kept:
-// "route.bag" last modified 2026-11-24 10:03:11 -> "route.replaced-2026-11-24-10-03-11.bag", with "-2",
-// "-3", ... when that name is taken too. Nothing is ever overwritten.
-std::string replacedMapPath(const std::string& path, time_t modified)
-{
-  const size_t slash = path.find_last_of('/');
-  const size_t dot = path.find_last_of('.');
-  const bool has_extension = dot != std::string::npos && (slash == std::string::npos || dot > slash + 1);
-  const std::string stem = has_extension ? path.substr(0, dot) : path;
-  const std::string extension = has_extension ? path.substr(dot) : std::string();
-  char when[32] = "unknown-time";
-  struct tm local;
-  if (localtime_r(&modified, &local))
-    std::strftime(when, sizeof(when), "%Y-%m-%d-%H-%M-%S", &local);
-  const std::string base = stem + ".replaced-" + when;
-  struct stat info;
-  std::string candidate = base + extension;
-  for (int n = 2; fileExists(candidate, &info); ++n)
-    candidate = base + "-" + std::to_string(n) + extension;
-  return candidate;
-}
 
 bool isMono8(const std::string& encoding)
 {
@@ -229,9 +209,8 @@ private:
   std::string readBytes(uint64_t count, const char* what)
   {
     if (count > size_ - offset_)
-      throw CorruptMap(std::string("the file ends inside ") + what + " at byte " + std::to_string(offset_) +
-                       " (it claims " + std::to_string(count) + " bytes, " + std::to_string(size_ - offset_) +
-                       " are left)");
+      throw CorruptMap(std::string("the file ends inside ") + what + " (it claims " + std::to_string(count) +
+                       " bytes, " + std::to_string(size_ - offset_) + " are left)");
     std::string bytes(static_cast<size_t>(count), '\0');
     file_.read(&bytes[0], static_cast<std::streamsize>(count));
     if (static_cast<uint64_t>(file_.gcount()) != count)
@@ -403,6 +382,25 @@ private:
 
 }  // namespace
 
+std::string replacedMapPath(const std::string& path, time_t modified)
+{
+  const size_t slash = path.find_last_of('/');
+  const size_t dot = path.find_last_of('.');
+  const bool has_extension = dot != std::string::npos && (slash == std::string::npos || dot > slash + 1);
+  const std::string stem = has_extension ? path.substr(0, dot) : path;
+  const std::string extension = has_extension ? path.substr(dot) : std::string();
+  char when[32] = "unknown-time";
+  struct tm local;
+  if (localtime_r(&modified, &local))
+    std::strftime(when, sizeof(when), "%Y-%m-%d-%H-%M-%S", &local);
+  const std::string base = stem + ".replaced-" + when;
+  struct stat info;
+  std::string candidate = base + extension;
+  for (int n = 2; fileExists(candidate, &info); ++n)
+    candidate = base + "-" + std::to_string(n) + extension;
+  return candidate;
+}
+
 std::string preprocessingParamsTopic(const std::string& resolved_image_topic)
 {
   const std::string parent = ros::names::parentNamespace(resolved_image_topic);
@@ -420,6 +418,8 @@ std::string readableValue(const std::string& text)
   const double value = std::strtod(text.c_str(), &end);
   if (text.empty() || end != text.c_str() + text.size())
     return text;
+  if (std::fabs(value) < 1e15 && value == std::floor(value))
+    return std::to_string(static_cast<long long>(value));  // 100, not the shortest form 1e+02
   for (int digits = 1; digits <= 17; ++digits)
   {
     std::ostringstream shorter;
@@ -544,9 +544,9 @@ RouteMap readMap(const std::string& path)
   }
   catch (const CorruptMap& e)
   {
-    throw MapError("map file " + inQuotes(path) + " is truncated or corrupt: " + e.what() + " (record ending at byte " +
-                   std::to_string(scanner.offset()) + " of " + std::to_string(size) +
-                   "); if a recording was interrupted, `rosbag reindex` may recover it");
+    throw MapError("map file " + inQuotes(path) + " is truncated or corrupt at byte " +
+                   std::to_string(scanner.offset()) + " of " + std::to_string(size) + ": " + e.what() +
+                   "; if a recording was interrupted, `rosbag reindex` may recover it");
   }
   catch (const std::bad_alloc&)
   {

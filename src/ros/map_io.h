@@ -9,6 +9,7 @@
 #define ALONG_ROUTE_LOCALIZATION_ROS_MAP_IO_H
 
 #include <cstdint>
+#include <ctime>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,11 @@ void writeMap(const std::string& path, const RouteMap& map);
 /// A keyframe message (mono8, a copy of `preprocessed`) as the map file stores it.
 sensor_msgs::ImagePtr keyframeMessage(const cv::Mat& preprocessed, int64_t stamp_ns,
                                       const std::string& frame_id = std::string());
+
+/// The name under which a map file that a new recording replaces is kept: "route.bag" last modified
+/// 2026-11-24 10:03:11 -> "route.replaced-2026-11-24-10-03-11.bag", with "-2", "-3", ... when that name is
+/// taken too. Nothing is ever overwritten.
+std::string replacedMapPath(const std::string& path, time_t modified);
 
 /// Throws MapError when a map cannot be recorded to `path`: empty, a directory, or a `<path>.active`
 /// left by an interrupted recording that may hold its keyframes (one that does not open as a bag, or

@@ -408,6 +408,11 @@ TEST(MapIo, ParameterDifferenceNamesTheFieldsThatDiffer)
       << preprocessingDifference(a, b);
   EXPECT_EQ(difference.find("patch_size"), std::string::npos) << difference;
   EXPECT_EQ(preprocessingDifference(a, a), "");
+  // Whole numbers as typed: 100, not 1e+02 (the shortest form that reads back).
+  PreprocessingParams wide;
+  wide.output_width = 100;
+  EXPECT_NE(preprocessingDifference(a, wide).find("output_width: 64 vs 100"), std::string::npos)
+      << preprocessingDifference(a, wide);
 }
 
 TEST(MapIo, ParametersTopicSitsNextToTheImageTopic)
