@@ -14,7 +14,7 @@ PreprocessingParams toParams(const PreprocessorConfig& config, std::string* prob
   {
     params.normalization = NormalizationMethod::kPatch;
     if (problem)
-      *problem = "normalization must be 'patch' or 'divisive', got '" + config.normalization + "'";
+      *problem = "normalization must be 'divisive', 'patch' or 'none', got '" + config.normalization + "'";
   }
   params.patch_size = config.patch_size;
   params.min_patch_std = config.min_patch_std;

@@ -48,7 +48,8 @@ void usage(std::ostream& out)
          "        with --params or --set must agree with them).\n"
          "  --save-map: also write the loaded map as a map file (the recorder's format: for the localizer\n"
          "        nodelet, or a later --map that skips decoding and preprocessing the images).\n"
-         "  --params: flat YAML 'name: value' file; --set overrides one parameter. Names:\n   ";
+         "  --params: YAML of 'name: value' lines, flat or in the launch files' sections (preprocessor:,\n"
+         "        localizer:; map_recorder: is skipped); --set overrides one parameter. Names:\n   ";
   for (const std::string& name : alr::parameterNames())
     out << " " << name;
   out << "\n  Output CSV columns: query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";

@@ -76,5 +76,5 @@ TEST(Reconfigure, AnUnknownEnumNameIsNamedSoTheNodeletCanRejectIt)
   EXPECT_EQ("", problem);
   preprocessor.normalization = "divisve";
   arl::toParams(preprocessor, &problem);
-  EXPECT_EQ("normalization must be 'patch' or 'divisive', got 'divisve'", problem);
+  EXPECT_EQ("normalization must be 'divisive', 'patch' or 'none', got 'divisve'", problem);
 }
