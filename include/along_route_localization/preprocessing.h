@@ -81,6 +81,13 @@ struct PreprocessingParams
   /// Inverse of serialize(); false with *error set when text is malformed or invalid.
   static bool parse(const std::string& text, PreprocessingParams* params, std::string* error);
 
+  /// A copy with the fields its normalization does not read at their defaults (patch_size and
+  /// min_patch_std for eq. 3; filter_window and normalization_strength for eq. 1; those and output_gain
+  /// for none): two sets with the same canonical form make the same bytes.
+  PreprocessingParams canonical() const;
+
+  /// Equal canonical forms, compared as serialized text (every field at full precision): a map's stored
+  /// parameters and a live configuration are equal when they make the same bytes.
   bool operator==(const PreprocessingParams& other) const;
   bool operator!=(const PreprocessingParams& other) const { return !(*this == other); }
 };

@@ -167,11 +167,28 @@ bool PreprocessingParams::parse(const std::string& text, PreprocessingParams* pa
   return true;
 }
 
+PreprocessingParams PreprocessingParams::canonical() const
+{
+  const PreprocessingParams defaults;
+  PreprocessingParams c = *this;
+  if (normalization != NormalizationMethod::kPatch)
+  {
+    c.patch_size = defaults.patch_size;
+    c.min_patch_std = defaults.min_patch_std;
+  }
+  if (normalization != NormalizationMethod::kDivisive)
+  {
+    c.filter_window = defaults.filter_window;
+    c.normalization_strength = defaults.normalization_strength;
+  }
+  if (normalization == NormalizationMethod::kNone)
+    c.output_gain = defaults.output_gain;
+  return c;
+}
+
 bool PreprocessingParams::operator==(const PreprocessingParams& o) const
 {
-  // Serialized text compares every field at full precision, so a map's stored parameters and a live
-  // configuration are equal exactly when they would produce the same bytes.
-  return serialize() == o.serialize();
+  return canonical().serialize() == o.canonical().serialize();
 }
 
 void toGray(const cv::Mat& input, PixelFormat format, cv::Mat& gray)

@@ -447,8 +447,9 @@ std::string preprocessingDifference(const PreprocessingParams& a, const Preproce
     }
     return values;
   };
-  const std::map<std::string, std::string> fields_a = fields(a.serialize());
-  const std::map<std::string, std::string> fields_b = fields(b.serialize());
+  // Fields the normalization does not read make no difference (PreprocessingParams::canonical).
+  const std::map<std::string, std::string> fields_a = fields(a.canonical().serialize());
+  const std::map<std::string, std::string> fields_b = fields(b.canonical().serialize());
   std::string difference;
   for (const auto& field : fields_a)
   {

@@ -291,6 +291,10 @@ class LocalizeOfflineTest(unittest.TestCase):
         result = self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output,
                                  '--set', 'sky_fraction=0')
         self.assertEqual(result.returncode, 0, result.stderr)
+        # A field eq. 3 does not read (the map is eq. 3) makes the same bytes: it agrees.
+        result = self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output,
+                                 '--set', 'normalization_strength=0.2', '--set', 'patch_size=4')
+        self.assertEqual(result.returncode, 0, result.stderr)
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
                                          '--set', 'output_width=0'), 'invalid preprocessing parameters')
 
