@@ -20,8 +20,8 @@
 #include <condition_variable>
 #include <deque>
 #include <memory>
-#include <set>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 

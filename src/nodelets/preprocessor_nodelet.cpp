@@ -10,8 +10,8 @@
 #include <algorithm>
 #include <array>
 #include <memory>
-#include <set>
 #include <mutex>
+#include <set>
 #include <string>
 
 #include <boost/thread/recursive_mutex.hpp>

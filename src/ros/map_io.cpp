@@ -42,7 +42,6 @@ bool fileExists(const std::string& path, struct stat* info)
   return ::stat(path.c_str(), info) == 0;
 }
 
-
 bool isMono8(const std::string& encoding)
 {
   return encoding == sensor_msgs::image_encodings::MONO8 || encoding == sensor_msgs::image_encodings::TYPE_8UC1;
