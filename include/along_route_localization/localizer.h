@@ -155,6 +155,9 @@ struct LocalizerParams
   int lost_after_frames = 6;
   int lost_window_frames = 8;
   int end_of_route_keyframes = 2;     ///< a match this close to the last keyframe reports kEndOfRoute
+  /// A gap in the frames' stamps (FrameClock) is frames the camera missed: they go through skipFrames
+  /// before the frame after the gap. Off for a camera triggered by distance travelled, whose gaps are stops.
+  bool fill_frame_gaps = true;
   double horizontal_fov_rad = 1.0;    ///< camera horizontal field of view, for the homing angle
   bool parallel = true;               ///< spread global searches over cores
 
@@ -171,6 +174,8 @@ struct LocalizationResult
   double shift_px = 0.0;        ///< query content displaced this many px to the right of the keyframe's
   double homing_angle_rad = 0.0;///< turn to apply to get back onto the route; REP-103: positive = left
   bool query_informative = true;///< false for featureless (dark, blank) frames
+  bool time_went_back = false;  ///< the stamp was before the last one: the localizer started over (reset)
+  int missed_frames = 0;        ///< frames missed before this one, from the stamps (FrameClock)
 };
 
 /// Homing angle from an image shift: a scene displaced d px to the right means the camera yawed left,
@@ -202,9 +207,20 @@ public:
   const LocalizerParams& params() const { return params_; }
 
   /// Processes one preprocessed image (CV_8UC1, the map's size). Throws std::invalid_argument otherwise.
-  LocalizationResult process(const cv::Mat& preprocessed);
+  /// stamp_ns, the frame's stamp (0: unknown), tells the sequence apart from the frames' order: a stamp
+  /// before the last one (a looping bag) starts over (reset), a gap in the stamps is frames missed
+  /// (skipFrames, when fill_frame_gaps is set). The result says which.
+  LocalizationResult process(const cv::Mat& preprocessed, int64_t stamp_ns = 0);
 
-  /// Forgets the sequence (e.g. time jumped back); the next frames initialize globally.
+  /// Tells the localizer that the camera missed `count` frames since the last one (a dropout, frames
+  /// dropped on the way; FrameClock measures it from the stamps). Each becomes a row without evidence, as
+  /// a featureless frame is, so the sequence goes on through the gap at any speed the DTW allows and the
+  /// frames after it tell where the robot went. A gap of at least K frames (ring_buffer_rows) leaves no
+  /// row to join up with: the track is lost and the search starts over from an empty window.
+  void skipFrames(int count);
+
+  /// Forgets the sequence (e.g. time jumped back); the next frames initialize globally. The frame period
+  /// learnt from the stamps is kept.
   void reset();
 
   const RouteMap& map() const { return *map_; }
@@ -230,6 +246,8 @@ public:
   cv::Mat renderDebugImage(int first_keyframe, int width, int scale = 4) const;
 
 private:
+  /// One frame of process(), or a frame the camera missed (query nullptr: a featureless row, skipFrames).
+  LocalizationResult step(const uint8_t* query);
   void rebuildComparators();
   /// First image row compared: below the sky rows, leaving at least one row.
   int firstComparedRow() const;
@@ -291,6 +309,7 @@ private:
   int cruise_samples_ = 1;               // the nominal speed counts as the first
   GlobalConfirmation confirmation_;
   LossDetector loss_;
+  FrameClock clock_;
   uint64_t frames_ = 0;
   std::vector<int> last_path_;
   cv::Mat entered_query_;                  // the last query that entered the ring buffer (empty: none)

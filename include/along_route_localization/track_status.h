@@ -1,10 +1,12 @@
 // Step 5, the status part: when a global answer may be trusted (initialization, relocalization) and
 // when the track is lost. Both decide on a frame's "confidence in the place" (Localizer::process)
 // and skip featureless frames: a dark tunnel or a blank frame says nothing about where we are, so it
-// neither confirms a hypothesis nor counts against the track.
+// neither confirms a hypothesis nor counts against the track. FrameClock tells, from the frames'
+// stamps, when time went back (a looping bag) or frames were missed (a camera dropout).
 #ifndef ALONG_ROUTE_LOCALIZATION_TRACK_STATUS_H
 #define ALONG_ROUTE_LOCALIZATION_TRACK_STATUS_H
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -52,6 +54,37 @@ private:
   int low_frames_ = 1;
   std::vector<uint8_t> history_;  // circular: 1 = low confidence, over the last window informative frames
   int next_ = 0, filled_ = 0, low_count_ = 0;
+};
+
+/// The camera's frame period, from the frames' stamps, and what a new stamp says about the sequence:
+/// time went back (a looping bag, a restarted clock), or a gap in which frames were missed (a dropout, a
+/// cable, frames dropped on the way). The period is the median of the last kIntervals intervals, known
+/// once kMinIntervals were seen (a gap before that is not noticed). A stamp `ratio` periods after the
+/// last one missed lround(ratio) - 1 frames when ratio >= kGapRatio: a camera's jitter is far below half a
+/// period, and a rate that changes for good is learnt within kIntervals / 2 frames.
+class FrameClock
+{
+public:
+  static constexpr int kIntervals = 15;
+  static constexpr int kMinIntervals = 5;
+  static constexpr double kGapRatio = 1.5;
+
+  struct Tick
+  {
+    bool went_back = false;  ///< the stamp is before the last one
+    int missed = 0;          ///< frames missed between the last stamp and this one
+  };
+  /// stamp_ns: the frame's stamp (any epoch). 0 means unknown: nothing is said and nothing learnt.
+  Tick update(int64_t stamp_ns);
+  /// Forgets the last stamp (the next one starts afresh) but keeps the period.
+  void forgetLastStamp() { last_ns_ = 0; }
+  /// The period in ns, 0 while fewer than kMinIntervals intervals were seen.
+  double periodNs() const;
+
+private:
+  int64_t last_ns_ = 0;
+  std::vector<int64_t> intervals_;  // circular, the last kIntervals positive intervals
+  std::size_t next_ = 0;
 };
 
 }  // namespace along_route_localization

@@ -335,6 +335,7 @@ void Localizer::reset()
   cruise_samples_ = 1;
   recent_count_ = recent_next_ = 0;
   relocalize_from_recent_ = false;
+  clock_.forgetLastStamp();
 }
 
 int Localizer::keyframeThroughRun(int dtw_keyframe)
@@ -451,7 +452,7 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
   newest_width_ = width;
 }
 
-LocalizationResult Localizer::process(const cv::Mat& preprocessed)
+LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp_ns)
 {
   if (preprocessed.type() != CV_8UC1 || preprocessed.cols != map_->width() || preprocessed.rows != map_->height())
     throw std::invalid_argument("Localizer: expected a preprocessed mono8 image of " + std::to_string(map_->width()) +
@@ -464,15 +465,59 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
     preprocessed.copyTo(query_copy_);
     query = query_copy_.data;
   }
+  const FrameClock::Tick tick = clock_.update(stamp_ns);
+  if (tick.went_back)
+  {
+    reset();
+    clock_.update(stamp_ns);  // reset() forgot the last stamp: this one is it
+  }
+  else if (params_.fill_frame_gaps)
+    skipFrames(tick.missed);
   ++frames_;
+  LocalizationResult result = step(query);
+  result.time_went_back = tick.went_back;
+  result.missed_frames = tick.went_back ? 0 : tick.missed;
+  return result;
+}
+
+void Localizer::skipFrames(int count)
+{
+  if (count <= 0)
+    return;
+  if (count >= params_.ring_buffer_rows)
+  {
+    // Longer than the window: no row before the gap can join a path to the rows after it, and the robot
+    // may be anywhere it could drive in that time. A track is lost; either way the search starts over
+    // from an empty window (the recent frames are from before the gap too).
+    if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
+      status_ = LocalizationStatus::kLost;
+    ring_.clear();
+    confirmation_.clear();
+    loss_.clear();
+    last_path_.clear();
+    run_position_ = -1.0;
+    recent_count_ = recent_next_ = 0;
+    relocalize_from_recent_ = false;
+    return;
+  }
+  // Each missed frame is a row without evidence, as a featureless frame is: the DTW paths go on through
+  // it at any speed it allows (the tie-break keeps the cruise speed), and the frames after the gap tell
+  // where the robot went. The results are not reported.
+  for (int i = 0; i < count; ++i)
+    step(nullptr);
+}
+
+LocalizationResult Localizer::step(const uint8_t* query)
+{
   const int n = static_cast<int>(map_->size());
   LocalizationResult result;
   const int first_row = firstComparedRow();
-  const float query_energy = textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows());
-  result.query_informative = query_energy >= min_texture_energy_;
+  const float query_energy =
+      query ? textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) : 0.0f;
+  result.query_informative = query && query_energy >= min_texture_energy_;
 
   // The query repeats the previous row's view (the camera stood still): flagged for column centering.
-  const bool repeated_query = stationary_change_ > 0.0f && !entered_query_.empty() &&
+  const bool repeated_query = query && stationary_change_ > 0.0f && !entered_query_.empty() &&
                               meanAbsoluteDifference(query, entered_query_.data, map_->width(), map_->height(),
                                                      first_row) < stationary_change_;
 
@@ -504,14 +549,16 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed)
   if (!recent_queries_.empty())
   {
     RecentQuery& recent = recent_queries_[recent_next_];
-    std::copy(query, query + map_->keyframeBytes(), recent.image.begin());
+    if (query)  // a missed frame's row is featureless: its image is never read
+      std::copy(query, query + map_->keyframeBytes(), recent.image.begin());
     recent.energy = query_energy;
     recent.informative = result.query_informative;
     recent.repeated = repeated_query;
     recent_next_ = (recent_next_ + 1) % static_cast<int>(recent_queries_.size());
     recent_count_ = std::min(recent_count_ + 1, static_cast<int>(recent_queries_.size()));
   }
-  cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
+  if (query)
+    cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
 
   SequenceMatch match;
   if (params_.method == SequenceMethod::kSeqSlam)

@@ -128,6 +128,8 @@ const std::map<std::string, Setter>& localizerSetters()
     { "motion_prior_cap", LOCALIZER_FIELD(float, motion_prior_cap) },
     { "run_dead_reckoning",
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->run_dead_reckoning); } },
+    { "fill_frame_gaps",
+      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->fill_frame_gaps); } },
     { "max_step", LOCALIZER_FIELD(int, dtw.max_step) },
     { "stop_penalty", LOCALIZER_FIELD(float, dtw.stop_penalty) },
     { "skip_penalty", LOCALIZER_FIELD(float, dtw.skip_penalty) },

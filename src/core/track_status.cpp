@@ -1,6 +1,7 @@
 #include "along_route_localization/track_status.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace along_route_localization
 {
@@ -60,6 +61,47 @@ bool LossDetector::update(bool confident, bool informative)
   low_count_ += history_[next_];
   next_ = (next_ + 1) % window;
   return low_count_ >= low_frames_;
+}
+
+double FrameClock::periodNs() const
+{
+  if (intervals_.size() < static_cast<size_t>(kMinIntervals))
+    return 0.0;
+  std::vector<int64_t> sorted = intervals_;
+  const size_t middle = sorted.size() / 2;
+  std::nth_element(sorted.begin(), sorted.begin() + middle, sorted.end());
+  if (sorted.size() % 2 == 1)
+    return static_cast<double>(sorted[middle]);
+  const int64_t upper = sorted[middle];
+  const int64_t lower = *std::max_element(sorted.begin(), sorted.begin() + middle);
+  return 0.5 * (static_cast<double>(lower) + static_cast<double>(upper));
+}
+
+FrameClock::Tick FrameClock::update(int64_t stamp_ns)
+{
+  Tick tick;
+  if (stamp_ns == 0)
+    return tick;
+  if (last_ns_ != 0 && stamp_ns < last_ns_)
+    tick.went_back = true;
+  else if (last_ns_ != 0 && stamp_ns > last_ns_)
+  {
+    const int64_t interval = stamp_ns - last_ns_;
+    const double period = periodNs();
+    if (period > 0.0)
+    {
+      const double ratio = std::min(static_cast<double>(interval) / period, 1e9);
+      if (ratio >= kGapRatio)
+        tick.missed = static_cast<int>(std::lround(ratio)) - 1;
+    }
+    if (intervals_.size() < static_cast<size_t>(kIntervals))
+      intervals_.push_back(interval);
+    else
+      intervals_[next_] = interval;
+    next_ = (next_ + 1) % kIntervals;
+  }
+  last_ns_ = stamp_ns;
+  return tick;
 }
 
 }  // namespace along_route_localization

@@ -564,6 +564,71 @@ TEST(Localizer, ResetGoesBackToInitializing)
   EXPECT_EQ(11u, localizer.frameCount());
 }
 
+TEST(Localizer, StampsSayWhenTimeWentBackAndWhenFramesWereMissed)
+{
+  // 10 Hz stamps. Keyframes 0..20 one per frame; then the camera misses keyframes 21..29 (a 1 s gap:
+  // 9 frames) while the robot drives on; then time goes back (a looping bag) to keyframe 5.
+  const auto map = syntheticMap(60);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  const int64_t start = 1000000000LL, period = 100000000LL;
+  arl::LocalizationResult result;
+  for (int i = 0; i <= 20; ++i)
+  {
+    result = localizer.process(keyframeCopy(*map, i), start + i * period);
+    EXPECT_EQ(0, result.missed_frames) << "frame " << i;
+    EXPECT_FALSE(result.time_went_back) << "frame " << i;
+  }
+  ASSERT_EQ(LocalizationStatus::kTracking, result.status);
+  ASSERT_EQ(20, result.keyframe);
+  result = localizer.process(keyframeCopy(*map, 30), start + 30 * period);
+  EXPECT_EQ(9, result.missed_frames);
+  EXPECT_EQ(LocalizationStatus::kTracking, result.status);
+  EXPECT_EQ(30, result.keyframe);
+  // The ring buffer holds a row for each missed frame: 21 + 9 + 1 = 31 frames, K = 30 rows.
+  EXPECT_EQ(30, localizer.costs().size());
+  EXPECT_EQ(22u, localizer.frameCount());  // frames processed, not the missed ones
+  result = localizer.process(keyframeCopy(*map, 31), start + 31 * period);
+  EXPECT_EQ(0, result.missed_frames);
+  EXPECT_EQ(31, result.keyframe);
+
+  result = localizer.process(keyframeCopy(*map, 5), start + 5 * period);
+  EXPECT_TRUE(result.time_went_back);
+  EXPECT_EQ(LocalizationStatus::kInitializing, result.status);
+  EXPECT_EQ(1u, localizer.frameCount());
+  for (int i = 6; i <= 15; ++i)
+    result = localizer.process(keyframeCopy(*map, i), start + i * period);
+  EXPECT_FALSE(result.time_went_back);
+  EXPECT_EQ(LocalizationStatus::kTracking, result.status);
+  EXPECT_EQ(15, result.keyframe);
+  // The period was kept through the restart: a gap right after it is seen.
+  result = localizer.process(keyframeCopy(*map, 18), start + 18 * period);
+  EXPECT_EQ(2, result.missed_frames);
+}
+
+TEST(Localizer, AGapLongerThanTheWindowSearchesTheWholeMapAgain)
+{
+  // The same route; the camera misses 40 frames (K = 30): nothing before the gap joins what comes after.
+  const auto map = syntheticMap(100);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  const int64_t period = 100000000LL;
+  for (int i = 0; i <= 20; ++i)
+    ASSERT_NE(LocalizationStatus::kLost, localizer.process(keyframeCopy(*map, i), (i + 1) * period).status);
+  arl::LocalizationResult result = localizer.process(keyframeCopy(*map, 61), 62 * period);
+  EXPECT_EQ(40, result.missed_frames);
+  EXPECT_EQ(LocalizationStatus::kLost, result.status);
+  EXPECT_EQ(1, localizer.costs().size());  // a new window, this frame's row only
+  // Then as at start-up: the first answer on the min_init_frames-th row (keyframe 65), tracking once
+  // init_confirm_frames answers in a row were confident (65..69).
+  for (int i = 62; i <= 68; ++i)
+  {
+    result = localizer.process(keyframeCopy(*map, i), (i + 1) * period);
+    EXPECT_NE(LocalizationStatus::kTracking, result.status) << "keyframe " << i;
+  }
+  result = localizer.process(keyframeCopy(*map, 69), 70 * period);
+  EXPECT_EQ(LocalizationStatus::kTracking, result.status);
+  EXPECT_EQ(69, result.keyframe);
+}
+
 // Feeds keyframes `before` (in order) of a 100-keyframe route to a fresh localizer, then keyframes
 // `after`, and counts the answers that, while the status says tracking (before the first loss), lie
 // outside [L - exclusion_radius, L + max_step + max_jump_ahead] of the previous answer L, with the
@@ -1015,7 +1080,8 @@ std::shared_ptr<arl::RouteMap> summerStretchMap()
 struct QueryFrame
 {
   cv::Mat image;
-  int truth;  // keyframe, -1 off the route
+  int truth;             // keyframe, -1 off the route
+  int64_t stamp_ns = 0;  // 0: unknown
 };
 
 struct LostAndFound
@@ -1039,7 +1105,7 @@ LostAndFound runQueries(const std::vector<QueryFrame>& queries,
   LostAndFound out;
   for (const QueryFrame& q : queries)
   {
-    const arl::LocalizationResult r = localizer.process(q.image);
+    const arl::LocalizationResult r = localizer.process(q.image, q.stamp_ns);
     const bool answering = r.status == LocalizationStatus::kTracking || r.status == LocalizationStatus::kEndOfRoute;
     char mark = r.status == LocalizationStatus::kLost ? 'l' : 'i';
     if (answering)
@@ -1178,4 +1244,34 @@ TEST(Localizer, MotionPriorKeepsTheAnswerMovingThroughAStationWhileTheCameraStan
               without_prior);
   EXPECT_GE(with_prior, 10);             // measured 11
   EXPECT_LT(without_prior, with_prior);  // measured 2
+}
+
+TEST(Localizer, GoesOnThroughCameraDropouts)
+{
+  SKIP_WITHOUT_NORDLAND();
+  // The winter stretch at 1 frame per second, with three dropouts of 15 frames while the train drives
+  // on (frames 61..75, 121..135, 231..245 never arrive; the stamps say so). Filled in, each missed frame
+  // is a row without evidence and the track goes on through the gap. Not filled in, the track continues
+  // from where it was, 16 keyframes behind, until it is lost and found again.
+  std::vector<QueryFrame> queries;
+  const std::vector<cv::Mat>& winter = preprocessedStretch("winter");
+  for (int i = 0; i < 300; ++i)
+    if (!((i > 60 && i <= 75) || (i > 120 && i <= 135) || (i > 230 && i <= 245)))
+      queries.push_back({ winter[i], i, 1000000000LL * (i + 1) });
+  const auto wrongAfterGaps = [](const LostAndFound& run) {
+    long wrong = 0;
+    for (size_t q = 0; q < run.marks.size(); ++q)
+      wrong += run.marks[q] == 'x' && q > 60 ? 1 : 0;  // query 61 is frame 76, the first after a gap
+    return wrong;
+  };
+  const LostAndFound filled = runQueries(queries);
+  arl::LocalizerParams off;
+  off.fill_frame_gaps = false;
+  const LostAndFound unfilled = runQueries(queries, off);
+  const long lost = std::count(filled.marks.begin() + 61, filled.marks.end(), 'l');
+  std::printf("after the dropouts: %ld answers wrong and %ld frames lost filled in, %ld wrong not filled in\n",
+              wrongAfterGaps(filled), lost, wrongAfterGaps(unfilled));
+  EXPECT_LE(wrongAfterGaps(filled), 3);
+  EXPECT_EQ(0, lost);
+  EXPECT_GE(wrongAfterGaps(unfilled), wrongAfterGaps(filled) + 20);
 }

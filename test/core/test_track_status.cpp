@@ -82,3 +82,71 @@ TEST(LossDetector, LowFramesAboveTheWindowAreBoundedByIt)
   EXPECT_FALSE(loss.update(false, true));
   EXPECT_TRUE(loss.update(false, true));
 }
+
+TEST(FrameClock, LearnsThePeriodThenCountsTheFramesMissedInAGap)
+{
+  arl::FrameClock clock;
+  const int64_t ms = 1000000;
+  // 10 Hz with jitter: intervals 100, 98, 103, 100, 99 ms. No gap is judged before 5 intervals.
+  int64_t t = 5000 * ms;
+  EXPECT_EQ(0, clock.update(t).missed);
+  EXPECT_EQ(0.0, clock.periodNs());
+  for (int64_t interval : { 100, 98, 103, 100 })
+    EXPECT_EQ(0, clock.update(t += interval * ms).missed);
+  EXPECT_EQ(0.0, clock.periodNs());                // 4 intervals
+  EXPECT_EQ(0, clock.update(t += 99 * ms).missed);
+  EXPECT_DOUBLE_EQ(100.0 * ms, clock.periodNs());  // median of 98, 99, 100, 100, 103
+  EXPECT_EQ(0, clock.update(t += 140 * ms).missed);  // 1.4 periods: jitter, not a missed frame
+  // intervals 98, 99, 100, 100, 103, 140: median (100 + 100) / 2
+  EXPECT_DOUBLE_EQ(100.0 * ms, clock.periodNs());
+  EXPECT_EQ(1, clock.update(t += 150 * ms).missed);   // 1.5 periods: one frame missed
+  EXPECT_EQ(9, clock.update(t += 1000 * ms).missed);  // 10 periods: 9 missed
+  const arl::FrameClock::Tick tick = clock.update(t += 100 * ms);
+  EXPECT_EQ(0, tick.missed);
+  EXPECT_FALSE(tick.went_back);
+}
+
+TEST(FrameClock, TimeGoingBackAndUnknownStamps)
+{
+  arl::FrameClock clock;
+  const int64_t ms = 1000000;
+  int64_t t = 1000 * ms;
+  for (int i = 0; i < 8; ++i)
+    clock.update(t += 100 * ms);
+  // Unknown stamps (0) say nothing and change nothing.
+  EXPECT_FALSE(clock.update(0).went_back);
+  EXPECT_EQ(0, clock.update(0).missed);
+  EXPECT_EQ(0, clock.update(t += 100 * ms).missed);
+  // Back in time (a looping bag): said once; the period is kept, so the next gap is still seen.
+  arl::FrameClock::Tick tick = clock.update(200 * ms);
+  EXPECT_TRUE(tick.went_back);
+  EXPECT_EQ(0, tick.missed);
+  EXPECT_FALSE(clock.update(300 * ms).went_back);
+  EXPECT_DOUBLE_EQ(100.0 * ms, clock.periodNs());
+  EXPECT_EQ(2, clock.update(600 * ms).missed);
+  // The same stamp again: no interval, no gap, not back.
+  tick = clock.update(600 * ms);
+  EXPECT_FALSE(tick.went_back);
+  EXPECT_EQ(0, tick.missed);
+  // forgetLastStamp: the next stamp starts afresh, whatever it is.
+  clock.forgetLastStamp();
+  tick = clock.update(100 * ms);
+  EXPECT_FALSE(tick.went_back);
+  EXPECT_EQ(0, tick.missed);
+}
+
+TEST(FrameClock, ARateThatChangesForGoodIsLearnt)
+{
+  arl::FrameClock clock;
+  const int64_t ms = 1000000;
+  int64_t t = 0;
+  for (int i = 0; i < 16; ++i)
+    clock.update(t += 100 * ms);  // 15 intervals of 100 ms
+  // The camera goes to 5 Hz: each 200 ms interval looks like a missed frame until 200 ms is the
+  // median of the last 15 intervals, after 8 of them.
+  int reported = 0;
+  for (int i = 0; i < 12; ++i)
+    reported += clock.update(t += 200 * ms).missed;
+  EXPECT_EQ(8, reported);
+  EXPECT_DOUBLE_EQ(200.0 * ms, clock.periodNs());
+}
