@@ -94,7 +94,7 @@ private:
   bool unchecked_warned_ = false;
   ros::Time last_stamp_;
   LocalizationResult last_result_;
-  uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0;
+  uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0, gaps_ = 0, missed_frames_ = 0;
   double time_sum_ms_ = 0.0, time_max_ms_ = 0.0, last_time_ms_ = 0.0;
   const void* last_input_data_ = nullptr;  // for checking the zero-copy hand-over
   ros::Time last_input_stamp_;
@@ -497,21 +497,13 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
                            msg->height, msg->encoding.c_str(), map_path_.c_str(), map_->width(), map_->height());
     return;
   }
-  if (!last_stamp_.isZero() && msg->header.stamp < last_stamp_)
-  {
-    NODELET_WARN("Time went backwards (%.3f s -> %.3f s; a looping bag?): restarting the localization",
-                 last_stamp_.toSec(), msg->header.stamp.toSec());
-    localizer_->reset();
-    ++resets_;
-  }
-  last_stamp_ = msg->header.stamp;
-
   const cv_bridge::CvImageConstPtr input = cv_bridge::toCvShare(msg);
   const auto start = std::chrono::steady_clock::now();
   LocalizationResult result;
   try
   {
-    result = localizer_->process(input->image);
+    // The stamp tells the core when time went back (it starts over) and when frames were missed.
+    result = localizer_->process(input->image, static_cast<int64_t>(msg->header.stamp.toNSec()));
   }
   catch (const std::exception& e)
   {
@@ -520,6 +512,26 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   }
   const double elapsed_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  if (result.time_went_back)
+  {
+    NODELET_WARN("Time went backwards (%.3f s -> %.3f s; a looping bag?): restarted the localization",
+                 last_stamp_.toSec(), msg->header.stamp.toSec());
+    ++resets_;
+  }
+  if (result.missed_frames > 0)
+  {
+    NODELET_WARN_THROTTLE(
+        5.0, "A gap of %.3f s in the image stamps (%.3f s -> %.3f s): about %d frames missed; %s",
+        (msg->header.stamp - last_stamp_).toSec(), last_stamp_.toSec(), msg->header.stamp.toSec(),
+        result.missed_frames,
+        !localizer_->params().fill_frame_gaps ? "not filled in (fill_frame_gaps is off)" :
+        result.missed_frames >= localizer_->params().ring_buffer_rows ?
+                                                "more than the ring buffer holds: searching the whole map again" :
+                                                "the localization goes on through them");
+    ++gaps_;
+    missed_frames_ += static_cast<uint64_t>(result.missed_frames);
+  }
+  last_stamp_ = msg->header.stamp;
 
   const LocalizationPtr out = boost::make_shared<Localization>();
   out->header = msg->header;
@@ -594,6 +606,8 @@ void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("keyframes", map_ ? map_->size() : 0);
   stat.add("frames processed", frames_);
   stat.add("resets (time went backwards)", resets_);
+  stat.add("gaps in the image stamps", gaps_);
+  stat.add("frames missed in them", missed_frames_);
   stat.add("status", toString(last_result_.status));
   stat.add("keyframe", last_result_.keyframe);
   stat.add("confidence", last_result_.confidence);

@@ -229,17 +229,21 @@ std::vector<std::string> listImageFiles(const std::string& folder)
 }
 
 std::vector<cv::Mat> loadPreprocessedFrames(const std::string& path, const std::string& topic,
-                                            const PreprocessingParams& params)
+                                            const PreprocessingParams& params, std::vector<int64_t>* stamps_ns)
 {
   requireExists(path);
+  if (stamps_ns)
+    stamps_ns->clear();
   if (isDirectory(path))
   {
     const std::vector<std::string> files = listImageFiles(path);
     if (files.empty())
       throw std::runtime_error("folder '" + path + "' holds no image files");
+    if (stamps_ns)
+      stamps_ns->assign(files.size(), 0);
     return preprocessFiles(files, params);
   }
-  return preprocessBag(path, topic, params, nullptr);
+  return preprocessBag(path, topic, params, stamps_ns);
 }
 
 std::shared_ptr<RouteMap> loadMapFromPath(const std::string& path, const std::string& topic, PreprocessingParams* params)

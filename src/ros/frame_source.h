@@ -2,6 +2,7 @@
 #ifndef ALONG_ROUTE_LOCALIZATION_ROS_FRAME_SOURCE_H
 #define ALONG_ROUTE_LOCALIZATION_ROS_FRAME_SOURCE_H
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -20,8 +21,10 @@ std::vector<std::string> listImageFiles(const std::string& folder);
 /// Preprocessed frames (mono8) of a folder of images or of an image topic of a bag (`topic` empty:
 /// the bag's only sensor_msgs/Image topic). Throws std::runtime_error with a clear message for a missing
 /// path, an unreadable image, an unsupported encoding, or a bag with no/several image topics.
+/// stamps_ns (optional): each frame's header stamp in ns; 0 (unknown) for the images of a folder.
 std::vector<cv::Mat> loadPreprocessedFrames(const std::string& path, const std::string& topic,
-                                            const PreprocessingParams& params);
+                                            const PreprocessingParams& params,
+                                            std::vector<int64_t>* stamps_ns = nullptr);
 
 /// A route map from a recorder map file (its stored parameters replace *params), or from a folder / image
 /// bag (every image a keyframe, preprocessed with *params; stamps from the bag, or the file index in ns).

@@ -218,6 +218,7 @@ int main(int argc, char** argv)
   const auto start = Clock::now();
   std::shared_ptr<alr::RouteMap> map;
   std::vector<cv::Mat> queries;
+  std::vector<int64_t> query_stamps;  // ns; 0 (unknown) for a folder
   try
   {
     // A recorder map carries the preprocessing it was made with, and the queries must be preprocessed
@@ -241,7 +242,7 @@ int main(int argc, char** argv)
                    "--map the images to preprocess them anew\n";
       return 2;
     }
-    queries = alr::loadPreprocessedFrames(query_path, topic, preprocessing);
+    queries = alr::loadPreprocessedFrames(query_path, topic, preprocessing, &query_stamps);
     if (queries.empty())
       throw alr::MapError("the query '" + query_path + "' holds no images");
   }
@@ -282,6 +283,7 @@ int main(int argc, char** argv)
   };
   out << "query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";
   const auto localize_start = Clock::now();
+  int gaps = 0, missed = 0, restarts = 0;
   try
   {
     alr::Localizer localizer(map, localizer_params);
@@ -289,7 +291,11 @@ int main(int argc, char** argv)
     char line[160];
     for (size_t q = 0; q < queries.size(); ++q)
     {
-      const alr::LocalizationResult r = localizer.process(queries[q]);
+      // As the localizer nodelet: a bag's stamps tell when time went back and when frames were missed.
+      const alr::LocalizationResult r = localizer.process(queries[q], query_stamps[q]);
+      restarts += r.time_went_back ? 1 : 0;
+      gaps += r.missed_frames > 0 ? 1 : 0;
+      missed += r.missed_frames;
       std::snprintf(line, sizeof(line), "%zu,%d,%.6f,%.4f,%.6f,%s\n", q, r.keyframe, r.confidence, r.shift_px,
                     r.homing_angle_rad, alr::toString(r.status).c_str());
       out << line;
@@ -306,10 +312,17 @@ int main(int argc, char** argv)
     return fail("writing '" + staging + "' failed: " + std::strerror(errno) + "; '" + output_path + "' is left as it was");
   if (staging != output_path && std::rename(staging.c_str(), output_path.c_str()) != 0)
     return fail("cannot move '" + staging + "' to '" + output_path + "': " + std::strerror(errno));
+  std::string stamps;
+  if (gaps > 0)
+    stamps += ", " + std::to_string(gaps) + " gaps in the stamps (" + std::to_string(missed) + " frames missed" +
+              (localizer_params.fill_frame_gaps ? "" : ", not filled in: fill_frame_gaps is off") + ")";
+  if (restarts > 0)
+    stamps += ", " + std::to_string(restarts) + " restarts (time went back)";
   std::fprintf(stderr,
-               "localize_offline: %zu keyframes, %zu queries, method %s: loading %.3f s, localizing %.3f s "
+               "localize_offline: %zu keyframes, %zu queries%s, method %s: loading %.3f s, localizing %.3f s "
                "(%.3f ms/frame), total %.3f s -> %s\n",
-               map->size(), queries.size(), alr::toString(localizer_params.method).c_str(), load_seconds,
-               localize_seconds, 1000.0 * localize_seconds / queries.size(), secondsSince(start), output_path.c_str());
+               map->size(), queries.size(), stamps.c_str(), alr::toString(localizer_params.method).c_str(),
+               load_seconds, localize_seconds, 1000.0 * localize_seconds / queries.size(), secondsSince(start),
+               output_path.c_str());
   return 0;
 }

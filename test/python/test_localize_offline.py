@@ -134,6 +134,36 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.bad_dir, '--output',
                                          os.path.join(self.tmp, 'bad.csv')), 'a.png')
 
+    def test_a_gap_in_a_bags_stamps_is_frames_missed(self):
+        # The route's frames 0..39 stamped 1 s apart, frames 20..27 missing (the camera dropped out while
+        # the robot drove on): one row per message, the gap named in the summary, and the frames after it
+        # answered where they are.
+        from sensor_msgs.msg import Image
+        import rospy
+        messages = []
+        for i in [i for i in range(40) if not 20 <= i < 28]:
+            image = cv2.imread(os.path.join(self.map_dir, '%05d.png' % i), cv2.IMREAD_GRAYSCALE)
+            msg = self.image('mono8', image.shape[1], image.shape[0], image.tobytes(), image.shape[1])
+            msg.header.stamp = rospy.Time(1000 + i)
+            messages.append(msg)
+        self.assertIsInstance(messages[0], Image)
+        bag = self.write_bag('gap.bag', messages)
+        output = os.path.join(self.tmp, 'gap.csv')
+        result = self.run_runner('--map', self.map_dir, '--query', bag, '--output', output)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn('32 queries, 1 gaps in the stamps (8 frames missed)', result.stderr)
+        with open(output) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(len(rows), 32)
+        after = rows[20:]  # frames 28..39
+        self.assertEqual([int(r['keyframe']) for r in after], list(range(28, 40)))
+        self.assertTrue(all(r['status'] in ('tracking', 'end_of_route') for r in after), after)
+        # Told not to fill gaps in (a camera triggered by distance), it still names the gap.
+        result = self.run_runner('--map', self.map_dir, '--query', bag, '--output', output,
+                                 '--set', 'fill_frame_gaps=false')
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn('(8 frames missed, not filled in: fill_frame_gaps is off)', result.stderr)
+
     def write_bag(self, name, images):
         """A bag with the sensor_msgs/Image messages `images` on /cam, at bag times 100, 101, ..."""
         import rosbag
