@@ -215,9 +215,14 @@ public:
   /// Tells the localizer that the camera missed `count` frames since the last one (a dropout, frames
   /// dropped on the way; FrameClock measures it from the stamps). Each becomes a row without evidence, as
   /// a featureless frame is, so the sequence goes on through the gap at any speed the DTW allows and the
-  /// frames after it tell where the robot went. A gap of at least K frames (ring_buffer_rows) leaves no
-  /// row to join up with: the track is lost and the search starts over from an empty window.
+  /// frames after it tell where the robot went. A gap of K - 1 frames or more (K: ring_buffer_rows, or the
+  /// baseline's sequence length) leaves the frame after it no row from before it in the window: the track
+  /// is lost and the search starts over from an empty window.
   void skipFrames(int count);
+  /// Whether skipFrames(count) would start the search over (count >= windowRows() - 1).
+  bool gapRestartsTheSearch(int count) const { return count >= windowRows() - 1; }
+  /// Rows the sequence match looks at: K (ring_buffer_rows), or the baseline's sequence length.
+  int windowRows() const;
 
   /// Forgets the sequence (e.g. time jumped back); the next frames initialize globally. The frame period
   /// learnt from the stamps is kept.

@@ -61,20 +61,23 @@ private:
 /// cable, frames dropped on the way). The period is the median of the last kIntervals intervals, known
 /// once kMinIntervals were seen (a gap before that is not noticed). A stamp `ratio` periods after the
 /// last one missed lround(ratio) - 1 frames when ratio >= kGapRatio: a camera's jitter is far below half a
-/// period, and a rate that changes for good is learnt within kIntervals / 2 frames.
+/// period, and a rate that changes for good is learnt within kIntervals / 2 frames. A stamp less than
+/// kOutOfOrderRatio periods before the last one is a frame out of order, not time going back.
 class FrameClock
 {
 public:
   static constexpr int kIntervals = 15;
   static constexpr int kMinIntervals = 5;
   static constexpr double kGapRatio = 1.5;
+  static constexpr double kOutOfOrderRatio = 0.5;
 
   struct Tick
   {
     bool went_back = false;  ///< the stamp is before the last one
     int missed = 0;          ///< frames missed between the last stamp and this one
   };
-  /// stamp_ns: the frame's stamp (any epoch). 0 means unknown: nothing is said and nothing learnt.
+  /// stamp_ns: the frame's stamp (any epoch). 0 means unknown: nothing is said or learnt, and the next
+  /// stamp starts afresh.
   Tick update(int64_t stamp_ns);
   /// Forgets the last stamp (the next one starts afresh) but keeps the period.
   void forgetLastStamp() { last_ns_ = 0; }

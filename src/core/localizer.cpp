@@ -480,16 +480,24 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   return result;
 }
 
+int Localizer::windowRows() const
+{
+  return params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : params_.ring_buffer_rows;
+}
+
 void Localizer::skipFrames(int count)
 {
   if (count <= 0)
     return;
-  if (count >= params_.ring_buffer_rows)
+  if (gapRestartsTheSearch(count))
   {
-    // Longer than the window: no row before the gap can join a path to the rows after it, and the robot
-    // may be anywhere it could drive in that time. A track is lost; either way the search starts over
-    // from an empty window (the recent frames are from before the gap too).
-    if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
+    // The frame after the gap would find no row from before it in the window: nothing joins the two
+    // sides, and the robot may be anywhere it could drive in that time. A track is lost (the baseline,
+    // which has no such status, initializes again); either way the search starts over from an empty
+    // window (the recent frames are from before the gap too).
+    if (params_.method == SequenceMethod::kSeqSlam)
+      status_ = LocalizationStatus::kInitializing;
+    else if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
       status_ = LocalizationStatus::kLost;
     ring_.clear();
     confirmation_.clear();
@@ -559,6 +567,15 @@ LocalizationResult Localizer::step(const uint8_t* query)
   }
   if (query)
     cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
+  else if (global)
+  {
+    // A missed frame during a global search: its row is in the window, but matching it over the whole map
+    // would cost a global search and say nothing new. It counts as a featureless frame for the
+    // confirmation (the robot may have moved on meanwhile).
+    confirmation_.update(-1, false, false);
+    last_path_.clear();
+    return result;
+  }
 
   SequenceMatch match;
   if (params_.method == SequenceMethod::kSeqSlam)
@@ -613,8 +630,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
     const double margin = std::max(0.0f, reference - match.cost);
     return 1.0 - std::exp(-margin * evidence / params_.confidence_scale);
   };
-  const int window_rows =
-      params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : params_.ring_buffer_rows;
+  const int window_rows = windowRows();
   const double evidence =
       std::min(1.0, static_cast<double>(ring_.distinctViews(match.rows)) / std::max(1, window_rows));
   result.confidence = confidenceFrom(match.has_second, match.second_cost, evidence);

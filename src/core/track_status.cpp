@@ -81,13 +81,20 @@ FrameClock::Tick FrameClock::update(int64_t stamp_ns)
 {
   Tick tick;
   if (stamp_ns == 0)
+  {
+    last_ns_ = 0;  // a frame came: the interval to the next stamp is not one period
     return tick;
+  }
+  const double period = periodNs();
   if (last_ns_ != 0 && stamp_ns < last_ns_)
+  {
+    if (period > 0.0 && static_cast<double>(last_ns_ - stamp_ns) < kOutOfOrderRatio * period)
+      return tick;  // a frame out of order: neither time going back nor an interval
     tick.went_back = true;
+  }
   else if (last_ns_ != 0 && stamp_ns > last_ns_)
   {
     const int64_t interval = stamp_ns - last_ns_;
-    const double period = periodNs();
     if (period > 0.0)
     {
       const double ratio = std::min(static_cast<double>(interval) / period, 1e9);

@@ -94,7 +94,7 @@ private:
   bool unchecked_warned_ = false;
   ros::Time last_stamp_;
   LocalizationResult last_result_;
-  uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0, gaps_ = 0, missed_frames_ = 0;
+  uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0, gaps_ = 0, long_gaps_ = 0, missed_frames_ = 0;
   double time_sum_ms_ = 0.0, time_max_ms_ = 0.0, last_time_ms_ = 0.0;
   const void* last_input_data_ = nullptr;  // for checking the zero-copy hand-over
   ros::Time last_input_stamp_;
@@ -520,16 +520,25 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   }
   if (result.missed_frames > 0)
   {
-    NODELET_WARN_THROTTLE(
-        5.0, "A gap of %.3f s in the image stamps (%.3f s -> %.3f s): about %d frames missed; %s",
-        (msg->header.stamp - last_stamp_).toSec(), last_stamp_.toSec(), msg->header.stamp.toSec(),
-        result.missed_frames,
-        !localizer_->params().fill_frame_gaps ? "not filled in (fill_frame_gaps is off)" :
-        result.missed_frames >= localizer_->params().ring_buffer_rows ?
-                                                "more than the ring buffer holds: searching the whole map again" :
-                                                "the localization goes on through them");
+    const double gap = (msg->header.stamp - last_stamp_).toSec();
+    const LocalizerParams& in_use = localizer_->params();
+    if (!in_use.fill_frame_gaps)
+      NODELET_WARN_THROTTLE(5.0, "A gap of %.3f s in the image stamps (%.3f s -> %.3f s): about %d frames missed, "
+                            "not filled in (fill_frame_gaps is off)",
+                            gap, last_stamp_.toSec(), msg->header.stamp.toSec(), result.missed_frames);
+    else if (localizer_->gapRestartsTheSearch(result.missed_frames))
+      NODELET_WARN("A gap of %.3f s in the image stamps (%.3f s -> %.3f s), longer than the sequence window: "
+                   "searching the whole map again",
+                   gap, last_stamp_.toSec(), msg->header.stamp.toSec());
+    else
+      NODELET_WARN_THROTTLE(5.0, "A gap of %.3f s in the image stamps (%.3f s -> %.3f s): about %d frames missed; "
+                            "the localization goes on through them",
+                            gap, last_stamp_.toSec(), msg->header.stamp.toSec(), result.missed_frames);
+    if (in_use.fill_frame_gaps && localizer_->gapRestartsTheSearch(result.missed_frames))
+      ++long_gaps_;
+    else
+      missed_frames_ += static_cast<uint64_t>(result.missed_frames);
     ++gaps_;
-    missed_frames_ += static_cast<uint64_t>(result.missed_frames);
   }
   last_stamp_ = msg->header.stamp;
 
@@ -607,7 +616,8 @@ void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("frames processed", frames_);
   stat.add("resets (time went backwards)", resets_);
   stat.add("gaps in the image stamps", gaps_);
-  stat.add("frames missed in them", missed_frames_);
+  stat.add("frames missed in gaps shorter than the window", missed_frames_);
+  stat.add("gaps that restarted the search", long_gaps_);
   stat.add("status", toString(last_result_.status));
   stat.add("keyframe", last_result_.keyframe);
   stat.add("confidence", last_result_.confidence);

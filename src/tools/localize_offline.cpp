@@ -283,7 +283,7 @@ int main(int argc, char** argv)
   };
   out << "query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";
   const auto localize_start = Clock::now();
-  int gaps = 0, missed = 0, restarts = 0;
+  int64_t gaps = 0, missed = 0, long_gaps = 0, restarts = 0;
   try
   {
     alr::Localizer localizer(map, localizer_params);
@@ -294,8 +294,14 @@ int main(int argc, char** argv)
       // As the localizer nodelet: a bag's stamps tell when time went back and when frames were missed.
       const alr::LocalizationResult r = localizer.process(queries[q], query_stamps[q]);
       restarts += r.time_went_back ? 1 : 0;
-      gaps += r.missed_frames > 0 ? 1 : 0;
-      missed += r.missed_frames;
+      if (r.missed_frames > 0)
+      {
+        ++gaps;
+        if (localizer_params.fill_frame_gaps && localizer.gapRestartsTheSearch(r.missed_frames))
+          ++long_gaps;
+        else
+          missed += r.missed_frames;
+      }
       std::snprintf(line, sizeof(line), "%zu,%d,%.6f,%.4f,%.6f,%s\n", q, r.keyframe, r.confidence, r.shift_px,
                     r.homing_angle_rad, alr::toString(r.status).c_str());
       out << line;
@@ -315,7 +321,9 @@ int main(int argc, char** argv)
   std::string stamps;
   if (gaps > 0)
     stamps += ", " + std::to_string(gaps) + " gaps in the stamps (" + std::to_string(missed) + " frames missed" +
-              (localizer_params.fill_frame_gaps ? "" : ", not filled in: fill_frame_gaps is off") + ")";
+              (localizer_params.fill_frame_gaps ? "" : ", not filled in: fill_frame_gaps is off") +
+              (long_gaps > 0 ? "; " + std::to_string(long_gaps) + " longer than the window, searched again" : "") +
+              ")";
   if (restarts > 0)
     stamps += ", " + std::to_string(restarts) + " restarts (time went back)";
   std::fprintf(stderr,

@@ -600,9 +600,56 @@ TEST(Localizer, StampsSayWhenTimeWentBackAndWhenFramesWereMissed)
   EXPECT_FALSE(result.time_went_back);
   EXPECT_EQ(LocalizationStatus::kTracking, result.status);
   EXPECT_EQ(15, result.keyframe);
-  // The period was kept through the restart: a gap right after it is seen.
-  result = localizer.process(keyframeCopy(*map, 18), start + 18 * period);
-  EXPECT_EQ(2, result.missed_frames);
+}
+
+TEST(Localizer, TheFramePeriodIsKeptThroughARestart)
+{
+  // 10 Hz; time goes back, and the frame right after the restart comes 3 periods later: 2 missed, seen
+  // at once (with the period forgotten, it would take 5 intervals to learn it again).
+  const auto map = syntheticMap(60);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  const int64_t period = 100000000LL;
+  for (int i = 10; i <= 20; ++i)
+    localizer.process(keyframeCopy(*map, i), (i + 1) * period);
+  EXPECT_TRUE(localizer.process(keyframeCopy(*map, 5), 6 * period).time_went_back);
+  EXPECT_EQ(2, localizer.process(keyframeCopy(*map, 8), 9 * period).missed_frames);
+}
+
+TEST(Localizer, AGapOfKMinusOneFramesLosesTheTrackOneShorterDoesNot)
+{
+  // K = 10. After a gap of K - 2 missed frames the frame after it still has a row from before the gap
+  // in its window; after K - 1 it has none. The baseline (SeqSLAM, sequence length 10) clears its
+  // window the same way and, having no lost status, initializes again.
+  const auto map = syntheticMap(100);
+  const int64_t period = 100000000LL;
+  for (const bool seqslam : { false, true })
+    for (const int missed : { 8, 9 })
+    {
+      arl::LocalizerParams params;
+      params.ring_buffer_rows = 10;
+      params.seqslam.sequence_length = 10;
+      if (seqslam)
+        params.method = arl::SequenceMethod::kSeqSlam;
+      arl::Localizer localizer(map, params);
+      const int first_tracking = seqslam ? params.min_init_frames - 1 : 8;  // the baseline confirms nothing
+      for (int i = 0; i <= 20; ++i)
+        ASSERT_EQ(i >= first_tracking ? LocalizationStatus::kTracking : LocalizationStatus::kInitializing,
+                  localizer.process(keyframeCopy(*map, i), (i + 1) * period).status)
+            << "keyframe " << i << (seqslam ? " seqslam" : " dtw");
+      const int next = 21 + missed;
+      const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, next), (next + 1) * period);
+      EXPECT_EQ(missed, result.missed_frames);
+      const bool cleared = missed == 9;
+      EXPECT_EQ(cleared ? 1 : 10, localizer.costs().size()) << missed << (seqslam ? " seqslam" : " dtw");
+      EXPECT_EQ(cleared ? (seqslam ? LocalizationStatus::kInitializing : LocalizationStatus::kLost) :
+                          LocalizationStatus::kTracking,
+                result.status)
+          << missed << (seqslam ? " seqslam" : " dtw");
+      if (!cleared && !seqslam)
+      {
+        EXPECT_EQ(next, result.keyframe);
+      }
+    }
 }
 
 TEST(Localizer, AGapLongerThanTheWindowSearchesTheWholeMapAgain)

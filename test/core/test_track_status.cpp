@@ -113,12 +113,19 @@ TEST(FrameClock, TimeGoingBackAndUnknownStamps)
   int64_t t = 1000 * ms;
   for (int i = 0; i < 8; ++i)
     clock.update(t += 100 * ms);
-  // Unknown stamps (0) say nothing and change nothing.
+  arl::FrameClock::Tick tick;
+  // An unknown stamp (0) says nothing, and the stamp after it starts afresh: the frame between came.
   EXPECT_FALSE(clock.update(0).went_back);
   EXPECT_EQ(0, clock.update(0).missed);
+  EXPECT_EQ(0, clock.update(t += 300 * ms).missed);
+  EXPECT_EQ(0, clock.update(t += 100 * ms).missed);
+  // Less than half a period back: a frame out of order, not time going back, and no interval.
+  tick = clock.update(t - 40 * ms);
+  EXPECT_FALSE(tick.went_back);
+  EXPECT_EQ(0, tick.missed);
   EXPECT_EQ(0, clock.update(t += 100 * ms).missed);
   // Back in time (a looping bag): said once; the period is kept, so the next gap is still seen.
-  arl::FrameClock::Tick tick = clock.update(200 * ms);
+  tick = clock.update(200 * ms);
   EXPECT_TRUE(tick.went_back);
   EXPECT_EQ(0, tick.missed);
   EXPECT_FALSE(clock.update(300 * ms).went_back);

@@ -163,6 +163,14 @@ class LocalizeOfflineTest(unittest.TestCase):
                                  '--set', 'fill_frame_gaps=false')
         self.assertEqual(result.returncode, 0, result.stderr)
         self.assertIn('(8 frames missed, not filled in: fill_frame_gaps is off)', result.stderr)
+        # With a window of 5 rows the gap leaves nothing to join up with: the search starts over.
+        result = self.run_runner('--map', self.map_dir, '--query', bag, '--output', output,
+                                 '--set', 'ring_buffer_rows=5')
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn('1 gaps in the stamps (0 frames missed; 1 longer than the window, searched again)',
+                      result.stderr)
+        with open(output) as f:
+            self.assertEqual(list(csv.DictReader(f))[20]['status'], 'lost')
 
     def write_bag(self, name, images):
         """A bag with the sensor_msgs/Image messages `images` on /cam, at bag times 100, 101, ..."""
