@@ -113,6 +113,20 @@ class BagTest(unittest.TestCase):
         self.assertEqual(gray, expected)
         self.assertEqual(messages[0][1].step, 6)
 
+    def test_stamps_by_index_leave_gaps_where_frames_are_left_out(self):
+        # Frames 0 and 2 of a.png, b.png, c.png at 2 Hz: by position 0.0 and 0.5 s after the start, by
+        # index 0.0 and 1.0 s (frame 1, left out, leaves a gap as a dropout would).
+        for option, expected in (([], [0.0, 0.5]), (["--stamp-by-index"], [0.0, 1.0])):
+            bag_path = os.path.join(self.tmp, "stamps%d.bag" % len(option))
+            with contextlib.redirect_stdout(io.StringIO()):
+                code = images_to_bag.main([self.folder, bag_path, "--rate", "2", "--frames", "0,2",
+                                           "--start-time", "100"] + option)
+            self.assertEqual(code, 0)
+            messages = self.read(bag_path)
+            self.assertEqual([m.header.stamp.to_sec() - 100 for _, m, _ in messages], expected)
+            self.assertEqual([t.to_sec() - 100 for _, _, t in messages], expected)
+            self.assertEqual([m.header.seq for _, m, _ in messages], [0, 1])
+
     def test_unreadable_image_fails_without_leaving_a_bag(self):
         with open(os.path.join(self.folder, "d.png"), "w") as f:
             f.write("this is not a png")
