@@ -97,6 +97,11 @@ struct PreprocessingParams
 /// the format, or NaN/inf in float input.
 void toGray(const cv::Mat& input, PixelFormat format, cv::Mat& gray);
 
+/// Float input (CV_32FC1) is read as intensity in [0, 1]; toGray clips what lies outside to black or
+/// white. True when some finite value of `input` does, with *sentence naming the range found (a thermal
+/// camera in kelvin, a depth image: scale it to [0, 1] first). False for any other type.
+bool floatOutsideUnitRange(const cv::Mat& input, std::string* sentence);
+
 /// eq. 1, SeqSLAM patch normalization, in place on an 8-bit image whose sides are multiples of
 /// patch_size: every pixel of a patch becomes saturate(128 + gain * (I - mean) / std); patches with
 /// std < min_std become 128. Population std (divide by patch_size^2).

@@ -1,6 +1,9 @@
 #include "along_route_localization/preprocessing.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -229,6 +232,33 @@ void toGray(const cv::Mat& input, PixelFormat format, cv::Mat& gray)
       input.convertTo(gray, CV_8U, 255.0);
       break;
   }
+}
+
+bool floatOutsideUnitRange(const cv::Mat& input, std::string* sentence)
+{
+  if (input.type() != CV_32FC1 || input.empty())
+    return false;
+  float low = std::numeric_limits<float>::infinity(), high = -low;
+  for (int y = 0; y < input.rows; ++y)
+  {
+    const float* row = input.ptr<float>(y);
+    for (int x = 0; x < input.cols; ++x)
+      if (std::isfinite(row[x]))
+      {
+        low = std::min(low, row[x]);
+        high = std::max(high, row[x]);
+      }
+  }
+  if (!(low < 0.0f || high > 1.0f))
+    return false;
+  if (sentence)
+  {
+    char text[160];
+    std::snprintf(text, sizeof(text), "32FC1 values from %g to %g, outside the [0, 1] read as intensity: clipped",
+                  static_cast<double>(low), static_cast<double>(high));
+    *sentence = text;
+  }
+  return true;
 }
 
 void patchNormalize(cv::Mat& image, int patch_size, double min_std, double gain)

@@ -219,6 +219,10 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   try
   {
     const cv_bridge::CvImageConstPtr input = cv_bridge::toCvShare(msg);
+    std::string clipped;
+    if (format == PixelFormat::kMono32F && floatOutsideUnitRange(input->image, &clipped))
+      NODELET_WARN_THROTTLE(10.0, "A %ux%u '%s' image: %s (scale the images to [0, 1])", msg->width, msg->height,
+                            msg->encoding.c_str(), clipped.c_str());
     preprocessor_.process(input->image, format, output);
   }
   catch (const std::exception& e)  // PreprocessingError, cv_bridge::Exception, cv::Exception

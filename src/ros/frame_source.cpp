@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <iostream>
 #include <map>
 #include <set>
 #include <sstream>
@@ -140,6 +141,7 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
     throw std::runtime_error("bag '" + path + "' has no messages on topic '" + image_topic + "'");
   Preprocessor preprocessor(params);
   std::vector<cv::Mat> frames;
+  size_t clipped_frames = 0;
   for (const rosbag::MessageInstance& m : view)
   {
     // Which message, for every error below: the bag, the topic, its 0-based position there, its stamp.
@@ -160,6 +162,10 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
     try
     {
       const cv_bridge::CvImageConstPtr image = cv_bridge::toCvShare(msg);
+      std::string clipped;
+      if (format == PixelFormat::kMono32F && floatOutsideUnitRange(image->image, &clipped) && clipped_frames++ == 0)
+        std::cerr << "warning: " << where() << ": " << clipped << " (scale the images to [0, 1]); "
+                  << "the bag's other such frames are counted, not named\n";
       frames.emplace_back();
       preprocessor.process(image->image, format, frames.back());
     }
@@ -170,6 +176,9 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
     if (stamps_ns)
       stamps_ns->push_back(static_cast<int64_t>(msg->header.stamp.toNSec()));
   }
+  if (clipped_frames > 1)
+    std::cerr << "warning: '" << path << "', topic '" << image_topic << "': " << clipped_frames << " of "
+              << frames.size() << " 32FC1 frames had values outside [0, 1], clipped\n";
   return frames;
 }
 

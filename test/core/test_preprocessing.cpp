@@ -221,6 +221,26 @@ TEST(ToGray, FloatIsScaledBy255)
     EXPECT_EQ(expected[i], at8(gray, 0, i)) << "input " << values[i];
 }
 
+TEST(ToGray, FloatOutsideZeroToOneIsNamed)
+{
+  cv::Mat input(2, 3, CV_32FC1, cv::Scalar(0.5));
+  std::string sentence = "untouched";
+  EXPECT_FALSE(arl::floatOutsideUnitRange(input, &sentence));
+  input.at<float>(0, 0) = 0.0f;
+  input.at<float>(1, 2) = 1.0f;
+  EXPECT_FALSE(arl::floatOutsideUnitRange(input, &sentence));  // the ends are inside
+  EXPECT_EQ("untouched", sentence);
+  input.at<float>(1, 1) = 1.25f;
+  ASSERT_TRUE(arl::floatOutsideUnitRange(input, &sentence));
+  EXPECT_EQ("32FC1 values from 0 to 1.25, outside the [0, 1] read as intensity: clipped", sentence);
+  input.at<float>(0, 1) = -3.5f;
+  ASSERT_TRUE(arl::floatOutsideUnitRange(input, &sentence));
+  EXPECT_EQ("32FC1 values from -3.5 to 1.25, outside the [0, 1] read as intensity: clipped", sentence);
+  EXPECT_TRUE(arl::floatOutsideUnitRange(input, nullptr));
+  // Other types are never float intensity.
+  EXPECT_FALSE(arl::floatOutsideUnitRange(cv::Mat(2, 2, CV_8UC1, cv::Scalar(200)), &sentence));
+}
+
 TEST(ToGray, FloatNanAndInfAreRejected)
 {
   cv::Mat input(4, 4, CV_32FC1, cv::Scalar(0.5));

@@ -209,6 +209,20 @@ class LocalizeOfflineTest(unittest.TestCase):
                                              os.path.join(self.tmp, 'bad_bag.csv')),
                              "'%s', topic '/cam', message 2 (bag time 102" % bag, words)
 
+    def test_float_frames_outside_zero_to_one_are_clipped_and_said_once(self):
+        # Three 32FC1 frames, two of them in kelvin (250..310): the run goes on, the first such frame is
+        # named, the count given at the end.
+        kelvin = np.linspace(250.0, 310.0, 64 * 32, dtype=np.float32).reshape(32, 64)
+        unit = np.linspace(0.0, 1.0, 64 * 32, dtype=np.float32).reshape(32, 64)
+        frames = [self.image('32FC1', 64, 32, f.tobytes(), 256) for f in (unit, kelvin, kelvin)]
+        bag = self.write_bag('kelvin.bag', frames)
+        result = self.run_runner('--map', self.map_dir, '--query', bag, '--output', os.path.join(self.tmp, 'k.csv'))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn("'%s', topic '/cam', message 1 (bag time 101" % bag, result.stderr)
+        self.assertIn('32FC1 values from 250 to 310, outside the [0, 1] read as intensity: clipped', result.stderr)
+        self.assertIn('2 of 3 32FC1 frames had values outside [0, 1], clipped', result.stderr)
+        self.assertNotIn('message 2 (', result.stderr)
+
     def test_a_cut_short_or_foreign_file_is_named_for_what_it_is(self):
         good = self.image('mono8', 64, 32, bytes(range(256)) * 8, 64)
         bag = self.write_bag('whole.bag', [good] * 20)

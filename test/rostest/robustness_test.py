@@ -99,6 +99,16 @@ class RobustnessTest(unittest.TestCase):
             self.assertNotIn(stamp, produced)
         self.assertEqual((produced[odd.header.stamp].width, produced[odd.header.stamp].height), (64, 32))
 
+    def test_float_frames_outside_zero_to_one_pass_clipped_with_a_warning(self):
+        # A thermal camera in kelvin: 32FC1 from 250 to 310. Used (clipped to white), and said.
+        w, h = 32, 16
+        kelvin = np.linspace(250.0, 310.0, w * h, dtype=np.float32).reshape(h, w)
+        hot = self.stamped(image('32FC1', w, h, kelvin.tobytes(), step=w * 4))
+        self.camera.publish(hot)
+        self.wait_for_stamp(self.preprocessed, hot.header.stamp, 'the clipped float frame')
+        fx.wait_for(lambda: self.rosout.matching('32FC1 values from 250 to 310, outside the [0, 1] read as '
+                                                 'intensity: clipped'), 10, 'the warning')
+
     def test_frames_of_another_size_than_the_map_are_refused(self):
         small = self.stamped(image('mono8', 32, 16, bytes(32 * 16)))
         self.direct.publish(small)
