@@ -176,6 +176,9 @@ struct LocalizationResult
   bool query_informative = true;///< false for featureless (dark, blank) frames
   bool time_went_back = false;  ///< the stamp was before the last one: the localizer started over (reset)
   int missed_frames = 0;        ///< frames missed before this one, from the stamps (FrameClock)
+  /// The missed frames went through skipFrames: fill_frame_gaps is on, and this frame does not show the
+  /// view of the last one before the gap (then the robot stood still through it, and nothing is filled).
+  bool gap_filled = false;
 };
 
 /// Homing angle from an image shift: a scene displaced d px to the right means the camera yawed left,
@@ -209,7 +212,8 @@ public:
   /// Processes one preprocessed image (CV_8UC1, the map's size). Throws std::invalid_argument otherwise.
   /// stamp_ns, the frame's stamp (0: unknown), tells the sequence apart from the frames' order: a stamp
   /// before the last one (a looping bag) starts over (reset), a gap in the stamps is frames missed
-  /// (skipFrames, when fill_frame_gaps is set). The result says which.
+  /// (skipFrames, when fill_frame_gaps is set, unless the frame shows the view of the last one before the
+  /// gap: the robot stood still). The result says which.
   LocalizationResult process(const cv::Mat& preprocessed, int64_t stamp_ns = 0);
 
   /// Tells the localizer that the camera missed `count` frames since the last one (a dropout, frames
@@ -253,6 +257,9 @@ public:
 private:
   /// One frame of process(), or a frame the camera missed (query nullptr: a featureless row, skipFrames).
   LocalizationResult step(const uint8_t* query);
+  /// The query shows the view of the last one that entered the ring buffer (stationary_ratio): the
+  /// camera stood still. False for nullptr.
+  bool repeatsLastView(const uint8_t* query) const;
   void rebuildComparators();
   /// First image row compared: below the sky rows, leaving at least one row.
   int firstComparedRow() const;

@@ -471,13 +471,30 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
     reset();
     clock_.update(stamp_ns);  // reset() forgot the last stamp: this one is it
   }
-  else if (params_.fill_frame_gaps)
+  // A frame after a gap that shows the view of the last frame before it, with texture enough to tell: the
+  // robot stood still through the gap (a dark view says nothing: the gap is filled in). Not inside a run of
+  // identical keyframes (a station where the teach robot stood too): there the robot goes on through the
+  // run at the speed it came, as frame by frame (motionPrior, keyframeThroughRun).
+  const bool in_run = last_match_ >= 0 && run_first_[last_match_] != run_last_[last_match_];
+  const bool same_view = tick.missed > 0 && !in_run && repeatsLastView(query) &&
+                         textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) >=
+                             min_texture_energy_;
+  const bool fill = !tick.went_back && tick.missed > 0 && params_.fill_frame_gaps && !same_view;
+  if (fill)
     skipFrames(tick.missed);
   ++frames_;
   LocalizationResult result = step(query);
   result.time_went_back = tick.went_back;
   result.missed_frames = tick.went_back ? 0 : tick.missed;
+  result.gap_filled = fill;
   return result;
+}
+
+bool Localizer::repeatsLastView(const uint8_t* query) const
+{
+  return query && stationary_change_ > 0.0f && !entered_query_.empty() &&
+         meanAbsoluteDifference(query, entered_query_.data, map_->width(), map_->height(), firstComparedRow()) <
+             stationary_change_;
 }
 
 int Localizer::windowRows() const
@@ -519,15 +536,12 @@ LocalizationResult Localizer::step(const uint8_t* query)
 {
   const int n = static_cast<int>(map_->size());
   LocalizationResult result;
-  const int first_row = firstComparedRow();
   const float query_energy =
       query ? textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) : 0.0f;
   result.query_informative = query && query_energy >= min_texture_energy_;
 
   // The query repeats the previous row's view (the camera stood still): flagged for column centering.
-  const bool repeated_query = query && stationary_change_ > 0.0f && !entered_query_.empty() &&
-                              meanAbsoluteDifference(query, entered_query_.data, map_->width(), map_->height(),
-                                                     first_row) < stationary_change_;
+  const bool repeated_query = repeatsLastView(query);
 
   const bool tracking = last_match_ >= 0 && (status_ == LocalizationStatus::kTracking ||
                                              status_ == LocalizationStatus::kEndOfRoute);

@@ -283,7 +283,7 @@ int main(int argc, char** argv)
   };
   out << "query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";
   const auto localize_start = Clock::now();
-  int64_t gaps = 0, missed = 0, long_gaps = 0, restarts = 0;
+  int64_t gaps = 0, missed = 0, long_gaps = 0, same_view = 0, restarts = 0;
   try
   {
     alr::Localizer localizer(map, localizer_params);
@@ -297,10 +297,12 @@ int main(int argc, char** argv)
       if (r.missed_frames > 0)
       {
         ++gaps;
-        if (localizer_params.fill_frame_gaps && localizer.gapRestartsTheSearch(r.missed_frames))
+        if (r.gap_filled && localizer.gapRestartsTheSearch(r.missed_frames))
           ++long_gaps;
         else
           missed += r.missed_frames;
+        if (!r.gap_filled && localizer_params.fill_frame_gaps)
+          ++same_view;
       }
       std::snprintf(line, sizeof(line), "%zu,%d,%.6f,%.4f,%.6f,%s\n", q, r.keyframe, r.confidence, r.shift_px,
                     r.homing_angle_rad, alr::toString(r.status).c_str());
@@ -323,6 +325,8 @@ int main(int argc, char** argv)
     stamps += ", " + std::to_string(gaps) + " gaps in the stamps (" + std::to_string(missed) + " frames missed" +
               (localizer_params.fill_frame_gaps ? "" : ", not filled in: fill_frame_gaps is off") +
               (long_gaps > 0 ? "; " + std::to_string(long_gaps) + " longer than the window, searched again" : "") +
+              (same_view > 0 ? "; " + std::to_string(same_view) + " with the same view before and after, not filled in" :
+                               "") +
               ")";
   if (restarts > 0)
     stamps += ", " + std::to_string(restarts) + " restarts (time went back)";

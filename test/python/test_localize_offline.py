@@ -139,13 +139,7 @@ class LocalizeOfflineTest(unittest.TestCase):
         # the robot drove on): one row per message, the gap named in the summary, and the frames after it
         # answered where they are.
         from sensor_msgs.msg import Image
-        import rospy
-        messages = []
-        for i in [i for i in range(40) if not 20 <= i < 28]:
-            image = cv2.imread(os.path.join(self.map_dir, '%05d.png' % i), cv2.IMREAD_GRAYSCALE)
-            msg = self.image('mono8', image.shape[1], image.shape[0], image.tobytes(), image.shape[1])
-            msg.header.stamp = rospy.Time(1000 + i)
-            messages.append(msg)
+        messages = [m for m in self.frames(0, 40) if not 1020 <= m.header.stamp.secs < 1028]
         self.assertIsInstance(messages[0], Image)
         bag = self.write_bag('gap.bag', messages)
         output = os.path.join(self.tmp, 'gap.csv')
@@ -163,6 +157,16 @@ class LocalizeOfflineTest(unittest.TestCase):
                                  '--set', 'fill_frame_gaps=false')
         self.assertEqual(result.returncode, 0, result.stderr)
         self.assertIn('(8 frames missed, not filled in: fill_frame_gaps is off)', result.stderr)
+        # The camera dropped out for 7 frames while the robot stood at frame 19: after the gap, the view
+        # before it again, then frames 20..39. Nothing is filled in, and the frames after it are right.
+        still = self.write_bag('still.bag', messages[:20] + [self.restamped(m, 1027 + i)
+                                                             for i, m in enumerate(messages[19:20] + self.frames(20, 40))])
+        result = self.run_runner('--map', self.map_dir, '--query', still, '--output', output)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn('41 queries, 1 gaps in the stamps (7 frames missed; 1 with the same view before and after, '
+                      'not filled in)', result.stderr)
+        with open(output) as f:
+            self.assertEqual([int(r['keyframe']) for r in list(csv.DictReader(f))[20:]], list(range(19, 40)))
         # With a window of 5 rows the gap leaves nothing to join up with: the search starts over.
         result = self.run_runner('--map', self.map_dir, '--query', bag, '--output', output,
                                  '--set', 'ring_buffer_rows=5')
@@ -171,6 +175,26 @@ class LocalizeOfflineTest(unittest.TestCase):
                       result.stderr)
         with open(output) as f:
             self.assertEqual(list(csv.DictReader(f))[20]['status'], 'lost')
+
+    def frames(self, first, last):
+        """The route's frames [first, last) as mono8 image messages, frame i stamped 1000 + i s."""
+        import rospy
+        messages = []
+        for i in range(first, last):
+            image = cv2.imread(os.path.join(self.map_dir, '%05d.png' % i), cv2.IMREAD_GRAYSCALE)
+            msg = self.image('mono8', image.shape[1], image.shape[0], image.tobytes(), image.shape[1])
+            msg.header.stamp = rospy.Time(1000 + i)
+            messages.append(msg)
+        return messages
+
+    @staticmethod
+    def restamped(msg, seconds):
+        """A copy of the image message `msg` stamped `seconds`."""
+        import copy
+        import rospy
+        other = copy.deepcopy(msg)
+        other.header.stamp = rospy.Time(seconds)
+        return other
 
     def write_bag(self, name, images):
         """A bag with the sensor_msgs/Image messages `images` on /cam, at bag times 100, 101, ..."""
