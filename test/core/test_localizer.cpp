@@ -603,22 +603,36 @@ TEST(Localizer, StampsSayWhenTimeWentBackAndWhenFramesWereMissed)
   EXPECT_EQ(15, result.keyframe);
 }
 
+namespace
+{
+
+constexpr int64_t kTenHz = 100000000LL;  // ns
+
+// Keyframes [first, last] of `map` in order, keyframe i stamped (i + 1) / 10 s; the last result.
+arl::LocalizationResult driveAtTenHz(arl::Localizer& localizer, const arl::RouteMap& map, int first, int last)
+{
+  arl::LocalizationResult result;
+  for (int i = first; i <= last; ++i)
+    result = localizer.process(keyframeCopy(map, i), (i + 1) * kTenHz);
+  return result;
+}
+
+}  // namespace
+
 TEST(Localizer, AGapWithTheSameViewOnBothSidesIsNotFilledIn)
 {
   // 10 Hz; after keyframe 20 a 1 s gap, and the frame after it shows keyframe 20 again: the robot stood
   // still through the gap, so nothing moves it on (filled in, the track would be 9 keyframes ahead).
   const auto map = syntheticMap(60);
   arl::Localizer localizer(map, arl::LocalizerParams());
-  const int64_t period = 100000000LL;
-  for (int i = 0; i <= 20; ++i)
-    localizer.process(keyframeCopy(*map, i), (i + 1) * period);
-  arl::LocalizationResult result = localizer.process(keyframeCopy(*map, 20), 31 * period);
+  ASSERT_EQ(20, driveAtTenHz(localizer, *map, 0, 20).keyframe);
+  arl::LocalizationResult result = localizer.process(keyframeCopy(*map, 20), 31 * kTenHz);
   EXPECT_EQ(9, result.missed_frames);
   EXPECT_FALSE(result.gap_filled);
   EXPECT_EQ(LocalizationStatus::kTracking, result.status);
   EXPECT_EQ(20, result.keyframe);
   EXPECT_EQ(22, localizer.costs().size());  // 22 frames: no rows added for the gap
-  result = localizer.process(keyframeCopy(*map, 21), 32 * period);
+  result = localizer.process(keyframeCopy(*map, 21), 32 * kTenHz);
   EXPECT_EQ(0, result.missed_frames);
   EXPECT_EQ(21, result.keyframe);
 }
@@ -629,11 +643,9 @@ TEST(Localizer, TheFramePeriodIsKeptThroughARestart)
   // at once (with the period forgotten, it would take 5 intervals to learn it again).
   const auto map = syntheticMap(60);
   arl::Localizer localizer(map, arl::LocalizerParams());
-  const int64_t period = 100000000LL;
-  for (int i = 10; i <= 20; ++i)
-    localizer.process(keyframeCopy(*map, i), (i + 1) * period);
-  EXPECT_TRUE(localizer.process(keyframeCopy(*map, 5), 6 * period).time_went_back);
-  EXPECT_EQ(2, localizer.process(keyframeCopy(*map, 8), 9 * period).missed_frames);
+  driveAtTenHz(localizer, *map, 10, 20);
+  EXPECT_TRUE(localizer.process(keyframeCopy(*map, 5), 6 * kTenHz).time_went_back);
+  EXPECT_EQ(2, localizer.process(keyframeCopy(*map, 8), 9 * kTenHz).missed_frames);
 }
 
 TEST(Localizer, AGapOfKMinusOneFramesLosesTheTrackOneShorterDoesNot)
