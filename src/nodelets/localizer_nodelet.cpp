@@ -616,7 +616,7 @@ void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("frames processed", frames_);
   stat.add("resets (time went backwards)", resets_);
   stat.add("gaps in the image stamps", gaps_);
-  stat.add("frames missed in gaps shorter than the window", missed_frames_);
+  stat.add("frames missed in gaps that did not restart the search", missed_frames_);
   stat.add("gaps that restarted the search", long_gaps_);
   stat.add("status", toString(last_result_.status));
   stat.add("keyframe", last_result_.keyframe);
