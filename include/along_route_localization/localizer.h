@@ -164,6 +164,16 @@ struct LocalizerParams
   std::string validate() const;
 };
 
+/// What the localizer did with the frames missed before a frame (FrameClock; LocalizationResult::gap).
+enum class FrameGap
+{
+  kNone,           ///< no frame was missed
+  kFilledIn,       ///< each missed frame became a row without evidence (skipFrames)
+  kSearchedAgain,  ///< at least K - 1 missed: the search started over from an empty window (skipFrames)
+  kStoodStill,     ///< the frame shows the view of the last one before the gap: nothing filled in
+  kNotFilledIn     ///< fill_frame_gaps is off
+};
+
 /// What the localizer says about one frame.
 struct LocalizationResult
 {
@@ -176,9 +186,7 @@ struct LocalizationResult
   bool query_informative = true;///< false for featureless (dark, blank) frames
   bool time_went_back = false;  ///< the stamp was before the last one: the localizer started over (reset)
   int missed_frames = 0;        ///< frames missed before this one, from the stamps (FrameClock)
-  /// The missed frames went through skipFrames: fill_frame_gaps is on, and this frame does not show the
-  /// view of the last one before the gap (then the robot stood still through it, and nothing is filled).
-  bool gap_filled = false;
+  FrameGap gap = FrameGap::kNone;  ///< what was done with them
 };
 
 /// Homing angle from an image shift: a scene displaced d px to the right means the camera yawed left,
@@ -223,10 +231,6 @@ public:
   /// baseline's sequence length) leaves the frame after it no row from before it in the window: the track
   /// is lost and the search starts over from an empty window.
   void skipFrames(int count);
-  /// Whether skipFrames(count) would start the search over (count >= windowRows() - 1).
-  bool gapRestartsTheSearch(int count) const { return count >= windowRows() - 1; }
-  /// Rows the sequence match looks at: K (ring_buffer_rows), or the baseline's sequence length.
-  int windowRows() const;
 
   /// Forgets the sequence (e.g. time jumped back); the next frames initialize globally. The frame period
   /// learnt from the stamps is kept.
@@ -260,6 +264,11 @@ private:
   /// The query shows the view of the last one that entered the ring buffer (stationary_ratio): the
   /// camera stood still. False for nullptr.
   bool repeatsLastView(const uint8_t* query) const;
+  /// Rows the sequence match looks at: K (ring_buffer_rows), or the baseline's sequence length.
+  int windowRows() const;
+  /// Whether skipFrames(count) starts the search over: the frame after the gap would find no row from
+  /// before it in the window.
+  bool gapRestartsTheSearch(int count) const { return count >= windowRows() - 1; }
   void rebuildComparators();
   /// First image row compared: below the sky rows, leaving at least one row.
   int firstComparedRow() const;

@@ -479,14 +479,21 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   const bool same_view = tick.missed > 0 && !in_run && repeatsLastView(query) &&
                          textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) >=
                              min_texture_energy_;
-  const bool fill = !tick.went_back && tick.missed > 0 && params_.fill_frame_gaps && !same_view;
-  if (fill)
-    skipFrames(tick.missed);
+  // (FrameClock reports no missed frames when time went back.)
+  FrameGap gap = FrameGap::kNone;
+  if (tick.missed > 0)
+  {
+    gap = !params_.fill_frame_gaps ? FrameGap::kNotFilledIn :
+          same_view                ? FrameGap::kStoodStill :
+          gapRestartsTheSearch(tick.missed) ? FrameGap::kSearchedAgain : FrameGap::kFilledIn;
+    if (gap == FrameGap::kFilledIn || gap == FrameGap::kSearchedAgain)
+      skipFrames(tick.missed);
+  }
   ++frames_;
   LocalizationResult result = step(query);
   result.time_went_back = tick.went_back;
-  result.missed_frames = tick.went_back ? 0 : tick.missed;
-  result.gap_filled = fill;
+  result.missed_frames = tick.missed;
+  result.gap = gap;
   return result;
 }
 

@@ -521,8 +521,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   if (result.missed_frames > 0)
   {
     const double gap = (msg->header.stamp - last_stamp_).toSec();
-    const LocalizerParams& in_use = localizer_->params();
-    const bool restarted = result.gap_filled && localizer_->gapRestartsTheSearch(result.missed_frames);
+    const bool restarted = result.gap == FrameGap::kSearchedAgain;
     if (restarted)
       NODELET_WARN("A gap of %.3f s in the image stamps (%.3f s -> %.3f s), longer than the sequence window: "
                    "searching the whole map again",
@@ -530,10 +529,10 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     else
       NODELET_WARN_THROTTLE(5.0, "A gap of %.3f s in the image stamps (%.3f s -> %.3f s): about %d frames missed; %s",
                             gap, last_stamp_.toSec(), msg->header.stamp.toSec(), result.missed_frames,
-                            result.gap_filled ? "the localization goes on through them" :
-                            !in_use.fill_frame_gaps ? "not filled in (fill_frame_gaps is off)" :
-                                                      "the view after it is the one before it: the robot stood "
-                                                      "still, nothing filled in");
+                            result.gap == FrameGap::kFilledIn    ? "the localization goes on through them" :
+                            result.gap == FrameGap::kNotFilledIn ? "not filled in (fill_frame_gaps is off)" :
+                                                                   "the view after it is the one before it: the "
+                                                                   "robot stood still, nothing filled in");
     if (restarted)
       ++long_gaps_;
     else

@@ -297,11 +297,11 @@ int main(int argc, char** argv)
       if (r.missed_frames > 0)
       {
         ++gaps;
-        if (r.gap_filled && localizer.gapRestartsTheSearch(r.missed_frames))
+        if (r.gap == alr::FrameGap::kSearchedAgain)
           ++long_gaps;
         else
           missed += r.missed_frames;
-        if (!r.gap_filled && localizer_params.fill_frame_gaps)
+        if (r.gap == alr::FrameGap::kStoodStill)
           ++same_view;
       }
       std::snprintf(line, sizeof(line), "%zu,%d,%.6f,%.4f,%.6f,%s\n", q, r.keyframe, r.confidence, r.shift_px,

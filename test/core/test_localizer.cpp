@@ -582,7 +582,7 @@ TEST(Localizer, StampsSayWhenTimeWentBackAndWhenFramesWereMissed)
   ASSERT_EQ(20, result.keyframe);
   result = localizer.process(keyframeCopy(*map, 30), start + 30 * period);
   EXPECT_EQ(9, result.missed_frames);
-  EXPECT_TRUE(result.gap_filled);
+  EXPECT_EQ(arl::FrameGap::kFilledIn, result.gap);
   EXPECT_EQ(LocalizationStatus::kTracking, result.status);
   EXPECT_EQ(30, result.keyframe);
   // The ring buffer holds a row for each missed frame: 21 + 9 + 1 = 31 frames, K = 30 rows.
@@ -628,7 +628,7 @@ TEST(Localizer, AGapWithTheSameViewOnBothSidesIsNotFilledIn)
   ASSERT_EQ(20, driveAtTenHz(localizer, *map, 0, 20).keyframe);
   arl::LocalizationResult result = localizer.process(keyframeCopy(*map, 20), 31 * kTenHz);
   EXPECT_EQ(9, result.missed_frames);
-  EXPECT_FALSE(result.gap_filled);
+  EXPECT_EQ(arl::FrameGap::kStoodStill, result.gap);
   EXPECT_EQ(LocalizationStatus::kTracking, result.status);
   EXPECT_EQ(20, result.keyframe);
   EXPECT_EQ(22, localizer.costs().size());  // 22 frames: no rows added for the gap
@@ -673,6 +673,7 @@ TEST(Localizer, AGapOfKMinusOneFramesLosesTheTrackOneShorterDoesNot)
       const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, next), (next + 1) * period);
       EXPECT_EQ(missed, result.missed_frames);
       const bool cleared = missed == 9;
+      EXPECT_EQ(cleared ? arl::FrameGap::kSearchedAgain : arl::FrameGap::kFilledIn, result.gap);
       EXPECT_EQ(cleared ? 1 : 10, localizer.costs().size()) << missed << (seqslam ? " seqslam" : " dtw");
       EXPECT_EQ(cleared ? (seqslam ? LocalizationStatus::kInitializing : LocalizationStatus::kLost) :
                           LocalizationStatus::kTracking,
