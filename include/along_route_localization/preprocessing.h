@@ -102,6 +102,12 @@ void toGray(const cv::Mat& input, PixelFormat format, cv::Mat& gray);
 /// camera in kelvin, a depth image: scale it to [0, 1] first). False for any other type.
 bool floatOutsideUnitRange(const cv::Mat& input, std::string* sentence);
 
+/// Preprocessing resizes every input to output_width x output_height. True when an input of `width` x
+/// `height` px is narrower or lower than that, so it is enlarged: the output holds no more detail than the
+/// input (a 1 x 1 frame comes out flat, as a dark frame does, and never matches). *sentence names both
+/// sizes and the fix. False for an empty size (toGray refuses it).
+bool inputSmallerThanOutput(int width, int height, const PreprocessingParams& params, std::string* sentence);
+
 /// eq. 1, SeqSLAM patch normalization, in place on an 8-bit image whose sides are multiples of
 /// patch_size: every pixel of a patch becomes saturate(128 + gain * (I - mean) / std); patches with
 /// std < min_std become 128. Population std (divide by patch_size^2).

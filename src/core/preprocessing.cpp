@@ -261,6 +261,22 @@ bool floatOutsideUnitRange(const cv::Mat& input, std::string* sentence)
   return true;
 }
 
+bool inputSmallerThanOutput(int width, int height, const PreprocessingParams& params, std::string* sentence)
+{
+  if (width <= 0 || height <= 0 || (width >= params.output_width && height >= params.output_height))
+    return false;
+  if (sentence)
+  {
+    char text[200];
+    std::snprintf(text, sizeof(text),
+                  "smaller than the %dx%d output: enlarged, it holds less detail than the output has room for "
+                  "(a camera mode of at least %dx%d px, or smaller output_width / output_height)",
+                  params.output_width, params.output_height, params.output_width, params.output_height);
+    *sentence = text;
+  }
+  return true;
+}
+
 void patchNormalize(cv::Mat& image, int patch_size, double min_std, double gain)
 {
   CV_Assert(image.type() == CV_8UC1 && image.rows % patch_size == 0 && image.cols % patch_size == 0);

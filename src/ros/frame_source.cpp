@@ -58,6 +58,7 @@ std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, cons
 {
   std::vector<cv::Mat> frames(files.size());
   std::vector<std::string> errors(files.size());
+  std::vector<cv::Size> enlarged(files.size());  // the size of an image smaller than the output, else empty
   cv::parallel_for_(cv::Range(0, static_cast<int>(files.size())), [&](const cv::Range& range) {
     Preprocessor preprocessor(params);
     for (int i = range.start; i < range.end; ++i)
@@ -68,6 +69,8 @@ std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, cons
         errors[i] = "cannot read image '" + files[i] + "'";
         continue;
       }
+      if (inputSmallerThanOutput(image.cols, image.rows, params, nullptr))
+        enlarged[i] = image.size();
       try
       {
         preprocessor.process(image, formatOfDecoded(image, files[i]), frames[i]);
@@ -81,6 +84,16 @@ std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, cons
   for (const std::string& error : errors)
     if (!error.empty())
       throw std::runtime_error(error);
+  const auto first = std::find_if(enlarged.begin(), enlarged.end(), [](const cv::Size& size) { return !size.empty(); });
+  if (first != enlarged.end())
+  {
+    std::string sentence;
+    inputSmallerThanOutput(first->width, first->height, params, &sentence);
+    const auto count = std::count_if(first, enlarged.end(), [](const cv::Size& size) { return !size.empty(); });
+    std::cerr << "warning: '" << files[first - enlarged.begin()] << "' is a " << first->width << "x" << first->height
+              << " image " << sentence << "; smaller than the output: " << count << " of the " << files.size()
+              << " images\n";
+  }
   return frames;
 }
 
@@ -141,7 +154,7 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
     throw std::runtime_error("bag '" + path + "' has no messages on topic '" + image_topic + "'");
   Preprocessor preprocessor(params);
   std::vector<cv::Mat> frames;
-  size_t clipped_frames = 0;
+  size_t clipped_frames = 0, enlarged_frames = 0;
   for (const rosbag::MessageInstance& m : view)
   {
     // Which message, for every error below: the bag, the topic, its 0-based position there, its stamp.
@@ -162,10 +175,13 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
     try
     {
       const cv_bridge::CvImageConstPtr image = cv_bridge::toCvShare(msg);
-      std::string clipped;
-      if (format == PixelFormat::kMono32F && floatOutsideUnitRange(image->image, &clipped) && clipped_frames++ == 0)
-        std::cerr << "warning: " << where() << ": " << clipped << " (scale the images to [0, 1]); "
+      std::string warning;
+      if (format == PixelFormat::kMono32F && floatOutsideUnitRange(image->image, &warning) && clipped_frames++ == 0)
+        std::cerr << "warning: " << where() << ": " << warning << " (scale the images to [0, 1]); "
                   << "the bag's other such frames are counted, not named\n";
+      if (inputSmallerThanOutput(image->image.cols, image->image.rows, params, &warning) && enlarged_frames++ == 0)
+        std::cerr << "warning: " << where() << ": a " << msg->width << "x" << msg->height << " image " << warning
+                  << "; the bag's other such frames are counted, not named\n";
       frames.emplace_back();
       preprocessor.process(image->image, format, frames.back());
     }
@@ -179,6 +195,9 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
   if (clipped_frames > 1)
     std::cerr << "warning: '" << path << "', topic '" << image_topic << "': " << clipped_frames << " of "
               << frames.size() << " 32FC1 frames had values outside [0, 1], clipped\n";
+  if (enlarged_frames > 1)
+    std::cerr << "warning: '" << path << "', topic '" << image_topic << "': " << enlarged_frames << " of "
+              << frames.size() << " frames were smaller than the output, enlarged\n";
   return frames;
 }
 

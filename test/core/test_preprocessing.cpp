@@ -241,6 +241,30 @@ TEST(ToGray, FloatOutsideZeroToOneIsNamed)
   EXPECT_FALSE(arl::floatOutsideUnitRange(cv::Mat(2, 2, CV_8UC1, cv::Scalar(200)), &sentence));
 }
 
+TEST(Preprocessor, InputSmallerThanTheOutputIsNamedAndComesOutWithoutDetail)
+{
+  arl::PreprocessingParams params;  // 64 x 32 output
+  std::string sentence = "untouched";
+  EXPECT_FALSE(arl::inputSmallerThanOutput(64, 32, params, &sentence));
+  EXPECT_FALSE(arl::inputSmallerThanOutput(640, 480, params, &sentence));
+  EXPECT_FALSE(arl::inputSmallerThanOutput(0, 0, params, &sentence));  // empty: toGray's error
+  EXPECT_EQ("untouched", sentence);
+  EXPECT_TRUE(arl::inputSmallerThanOutput(63, 480, params, nullptr));  // one side is enough
+  EXPECT_TRUE(arl::inputSmallerThanOutput(640, 31, params, nullptr));
+  ASSERT_TRUE(arl::inputSmallerThanOutput(1, 1, params, &sentence));
+  EXPECT_EQ("smaller than the 64x32 output: enlarged, it holds less detail than the output has room for (a "
+            "camera mode of at least 64x32 px, or smaller output_width / output_height)",
+            sentence);
+  // What a 1 x 1 frame becomes: one gray level everywhere, nothing to match on.
+  arl::Preprocessor preprocessor(params);
+  cv::Mat output;
+  preprocessor.process(cv::Mat(1, 1, CV_8UC1, cv::Scalar(200)), PixelFormat::kMono8, output);
+  ASSERT_EQ(cv::Size(64, 32), output.size());
+  double low = 0.0, high = 0.0;
+  cv::minMaxLoc(output, &low, &high);
+  EXPECT_EQ(low, high);
+}
+
 TEST(ToGray, FloatNanAndInfAreRejected)
 {
   cv::Mat input(4, 4, CV_32FC1, cv::Scalar(0.5));

@@ -247,6 +247,28 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertIn('2 of 3 32FC1 frames had values outside [0, 1], clipped', result.stderr)
         self.assertNotIn('message 2 (', result.stderr)
 
+    def test_frames_smaller_than_the_output_are_enlarged_and_said_once(self):
+        # A bag: a 64 x 32 frame, then two 1 x 1 ones; a folder: one 32 x 16 image among 64 x 32 ones.
+        # The runs go on (the frames are usable, if poor); the first such frame is named, the count given.
+        full = self.image('mono8', 64, 32, bytes(range(256)) * 8, 64)
+        dot = self.image('mono8', 1, 1, b'\x80', 1)
+        bag = self.write_bag('dots.bag', [full, dot, dot])
+        result = self.run_runner('--map', self.map_dir, '--query', bag, '--output', os.path.join(self.tmp, 'd.csv'))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn("'%s', topic '/cam', message 1 (bag time 101" % bag, result.stderr)
+        self.assertIn('a 1x1 image smaller than the 64x32 output: enlarged', result.stderr)
+        self.assertIn('2 of 3 frames were smaller than the output, enlarged', result.stderr)
+        self.assertNotIn('message 2 (', result.stderr)
+        ramp = np.tile(np.arange(0, 256, 4, dtype=np.uint8), (32, 1))
+        folder = self.folder('small', [ramp, ramp, cv2.resize(ramp, (32, 16)), ramp])
+        result = self.run_runner('--map', self.map_dir, '--query', folder, '--output', os.path.join(self.tmp, 's.csv'))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn("'%s' is a 32x16 image smaller than the 64x32 output" % os.path.join(folder, '00002.png'),
+                      result.stderr)
+        self.assertIn('smaller than the output: 1 of the 4 images', result.stderr)
+        # The map's own 128 x 96 images are not.
+        self.assertNotIn(self.map_dir, result.stderr)
+
     def test_a_cut_short_or_foreign_file_is_named_for_what_it_is(self):
         good = self.image('mono8', 64, 32, bytes(range(256)) * 8, 64)
         bag = self.write_bag('whole.bag', [good] * 20)
