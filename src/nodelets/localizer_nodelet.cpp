@@ -5,12 +5,13 @@
 //             a map made with other parameters is refused
 // Publishes:  localization (along_route_localization/Localization, header copied from the image)
 //             localization_debug_image (bgr8, only while subscribed: the ring buffer with the path)
-//             /diagnostics (processing time per frame, rate, status)
+//             /diagnostics (processing time per frame, rate, status, frames dropped and why)
 // Services:   ~load_map (along_route_localization/LoadMap)
 // Parameters: ~map (path, loaded at start), ~debug_image_scale (4), ~min_rate / ~max_rate (Hz,
 //             expected input rate for diagnostics); cfg/Localizer.cfg (dynamic, applied between
 //             frames); any other core parameter by its parameters.h name (static, e.g. ~cost_function)
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -36,6 +37,7 @@
 #include "along_route_localization/LocalizerConfig.h"
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/parameters.h"
+#include "ros/diagnostics_timer.h"
 #include "ros/map_io.h"
 #include "ros/private_parameters.h"
 #include "ros/reconfigure.h"
@@ -57,6 +59,18 @@ private:
   void warnAboutUnreadParameters(const ros::NodeHandle& private_nh);
   LocalizerParams effectiveParams(const LocalizerParams& requested) const;
   void publishDebugImage(const std_msgs::Header& header, int keyframe);
+  /// Why the frame is not localized, said at most once per 5 s for each kind (so a second kind is said
+  /// at once) and kept for the diagnostics.
+  enum class Drop
+  {
+    kNoMap,
+    kRefusedMap,
+    kEncoding,
+    kSize,
+    kFailure,
+    kCount
+  };
+  void dropFrame(Drop kind, const std::string& sentence);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
   // Static parameters, read in onInit.
@@ -71,7 +85,6 @@ private:
   ros::ServiceServer load_map_srv_;
   std::shared_ptr<diagnostic_updater::Updater> updater_;
   std::shared_ptr<diagnostic_updater::FrequencyStatus> rate_status_;
-  ros::Time diagnostics_time_;  // ROS time at the last diagnostics timer event (only that callback uses it)
   ros::WallTimer diagnostics_timer_;
 
   // Written by configCb, copied by imageCb; guarded by config_mutex_ (also the server's mutex).
@@ -95,6 +108,10 @@ private:
   ros::Time last_stamp_;
   LocalizationResult last_result_;
   uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0, gaps_ = 0, long_gaps_ = 0, missed_frames_ = 0;
+  uint64_t dropped_frames_ = 0;
+  std::string last_drop_;            // why the last dropped frame was dropped
+  bool last_frame_dropped_ = false;  // the newest frame was dropped
+  std::array<ros::WallTime, static_cast<size_t>(Drop::kCount)> last_drop_log_;
   double time_sum_ms_ = 0.0, time_max_ms_ = 0.0, last_time_ms_ = 0.0;
   const void* last_input_data_ = nullptr;  // for checking the zero-copy hand-over
   ros::Time last_input_stamp_;
@@ -277,16 +294,7 @@ void LocalizerNodelet::onInit()
       diagnostic_updater::FrequencyStatusParam(&min_rate_hz_, &max_rate_hz_), "localization rate");
   updater_->add(*rate_status_);
   updater_->add("localization", this, &LocalizerNodelet::diagnose);
-  // The updater publishes when ROS time has passed its last publication + its period. A looping bag
-  // played with --clock sends ROS time back; without force_update() it would wait for the old time.
-  diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(0.25), [this](const ros::WallTimerEvent&) {
-    const ros::Time now = ros::Time::now();
-    if (now < diagnostics_time_)
-      updater_->force_update();
-    else
-      updater_->update();
-    diagnostics_time_ = now;
-  });
+  diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
 
   localization_pub_ = nh.advertise<Localization>("localization", 10);
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
@@ -474,12 +482,12 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
 
   if (!map_)
   {
-    NODELET_WARN_THROTTLE(10.0, "Dropping frames: %s", map_error_.c_str());
+    dropFrame(Drop::kNoMap, map_error_);
     return;
   }
   if (!localizer_)
   {
-    NODELET_ERROR_THROTTLE(5.0, "Dropping frames: %s", refusal_.c_str());
+    dropFrame(Drop::kRefusedMap, refusal_);
     return;
   }
   if (!announced_ && !unchecked_warned_)
@@ -488,13 +496,24 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
                  params_sub_.getTopic().c_str(), map_path_.c_str());
     unchecked_warned_ = true;
   }
-  if ((msg->encoding != sensor_msgs::image_encodings::MONO8 &&
-       msg->encoding != sensor_msgs::image_encodings::TYPE_8UC1) ||
-      static_cast<int>(msg->width) != map_->width() || static_cast<int>(msg->height) != map_->height() ||
+  char sentence[512];
+  if (msg->encoding != sensor_msgs::image_encodings::MONO8 && msg->encoding != sensor_msgs::image_encodings::TYPE_8UC1)
+  {
+    std::snprintf(sentence, sizeof(sentence),
+                  "a %ux%u '%s' frame: the localizer takes the preprocessor's mono8 output (is %s remapped to a "
+                  "camera topic?)",
+                  msg->width, msg->height, msg->encoding.c_str(), image_sub_.getTopic().c_str());
+    dropFrame(Drop::kEncoding, sentence);
+    return;
+  }
+  if (static_cast<int>(msg->width) != map_->width() || static_cast<int>(msg->height) != map_->height() ||
       msg->step < msg->width || msg->data.size() < static_cast<size_t>(msg->step) * msg->height)
   {
-    NODELET_ERROR_THROTTLE(5.0, "Dropping a %ux%u '%s' frame: map %s holds %dx%d mono8 keyframes", msg->width,
-                           msg->height, msg->encoding.c_str(), map_path_.c_str(), map_->width(), map_->height());
+    std::snprintf(sentence, sizeof(sentence),
+                  "a %ux%u '%s' frame (step %u, %zu bytes): map %s holds %dx%d mono8 keyframes", msg->width,
+                  msg->height, msg->encoding.c_str(), msg->step, msg->data.size(), map_path_.c_str(), map_->width(),
+                  map_->height());
+    dropFrame(Drop::kSize, sentence);
     return;
   }
   const cv_bridge::CvImageConstPtr input = cv_bridge::toCvShare(msg);
@@ -507,7 +526,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   }
   catch (const std::exception& e)
   {
-    NODELET_ERROR_THROTTLE(5.0, "Localizer failed on a frame: %s", e.what());
+    dropFrame(Drop::kFailure, std::string("the localizer failed on a frame: ") + e.what());
     return;
   }
   const double elapsed_ms =
@@ -557,6 +576,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     publishDebugImage(msg->header, result.keyframe);
 
   last_result_ = result;
+  last_frame_dropped_ = false;
   ++frames_;
   ++frames_in_period_;
   time_sum_ms_ += elapsed_ms;
@@ -597,14 +617,34 @@ void LocalizerNodelet::publishDebugImage(const std_msgs::Header& header, int key
   debug_pub_.publish(out);
 }
 
+void LocalizerNodelet::dropFrame(Drop kind, const std::string& sentence)
+{
+  ++dropped_frames_;
+  last_drop_ = sentence;
+  last_frame_dropped_ = true;
+  const ros::WallTime now = ros::WallTime::now();
+  ros::WallTime& last = last_drop_log_[static_cast<size_t>(kind)];
+  if (!last.isZero() && (now - last).toSec() < 5.0)
+    return;
+  last = now;
+  if (kind == Drop::kNoMap)  // expected while a map is being taught or loaded
+    NODELET_WARN("Dropping frames: %s", sentence.c_str());
+  else if (kind == Drop::kRefusedMap)
+    NODELET_ERROR("Dropping frames: %s", sentence.c_str());
+  else
+    NODELET_ERROR("Dropping %s", sentence.c_str());
+}
+
 void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
 {
   if (!map_)
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, map_error_);
   else if (!localizer_)
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, refusal_);
+  else if (last_frame_dropped_)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "dropping " + last_drop_);
   else if (frames_ == 0)
-    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for images");
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for images on " + image_sub_.getTopic());
   else if (last_result_.status == LocalizationStatus::kLost)
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "lost: searching the whole map");
   else
@@ -613,6 +653,8 @@ void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("map", map_ ? map_path_ : std::string("(none)"));
   stat.add("keyframes", map_ ? map_->size() : 0);
   stat.add("frames processed", frames_);
+  stat.add("frames dropped", dropped_frames_);
+  stat.add("last dropped frame", last_drop_.empty() ? std::string("(none)") : last_drop_);
   stat.add("resets (time went backwards)", resets_);
   stat.add("gaps in the image stamps", gaps_);
   stat.add("frames missed in gaps that did not restart the search", missed_frames_);

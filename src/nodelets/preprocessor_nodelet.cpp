@@ -6,9 +6,11 @@
 //             <namespace of image_preprocessed>/preprocessing_params (std_msgs/String, latched):
 //             the parameters that make the images, published right before the first image made
 //             with a new value (see map_io.h)
+//             /diagnostics (images in, published, dropped and why, clipped or enlarged)
 // Parameters: cfg/Preprocessor.cfg (dynamic); ~queue_size (static, default 5)
 #include <algorithm>
 #include <array>
+#include <cstdio>
 #include <memory>
 #include <mutex>
 #include <set>
@@ -16,6 +18,7 @@
 
 #include <boost/thread/recursive_mutex.hpp>
 #include <cv_bridge/cv_bridge.h>
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>
@@ -24,6 +27,7 @@
 
 #include "along_route_localization/PreprocessorConfig.h"
 #include "along_route_localization/preprocessing.h"
+#include "ros/diagnostics_timer.h"
 #include "ros/image_message.h"
 #include "ros/map_io.h"
 #include "ros/private_parameters.h"
@@ -39,17 +43,23 @@ private:
   void connectCb();
   void imageCb(const sensor_msgs::ImageConstPtr& msg);
   void configCb(PreprocessorConfig& config, uint32_t level);
-  bool checkInput(const sensor_msgs::Image& msg, PixelFormat* format);
+  /// Drops the image: counted for the diagnostics, and said at most once per 5 s for each kind of
+  /// problem (an ImageProblem, or kNone for a failure while preprocessing) so a second kind is said at once.
+  void dropImage(ImageProblem kind, const std::string& sentence);
   void announce(const PreprocessingParams& params);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
   std::shared_ptr<image_transport::ImageTransport> it_;
   int queue_size_ = 5;
+  std::string image_topic_;  // resolved input topic
 
   // Lazy subscription: subscribed only while someone listens to image_preprocessed.
   std::mutex connect_mutex_;
   image_transport::Subscriber sub_;
   image_transport::Publisher pub_;
   ros::Publisher params_pub_;
+  std::shared_ptr<diagnostic_updater::Updater> updater_;
+  ros::WallTimer diagnostics_timer_;
 
   // Written by configCb, read by imageCb; guarded by config_mutex_ (also the server's mutex).
   boost::recursive_mutex config_mutex_;
@@ -59,8 +69,14 @@ private:
 
   // Used only from the nodelet's single-threaded callback queue (imageCb) after onInit.
   Preprocessor preprocessor_;
+  // The diagnostics timer runs on the same queue, so these need no lock either.
   bool in_place_warned_ = false;
-  std::array<ros::WallTime, 4> last_problem_time_;  // per ImageProblem: when checkInput last logged it
+  std::array<ros::WallTime, 4> last_problem_time_;  // per ImageProblem: when dropImage last logged it
+  uint64_t images_in_ = 0, published_ = 0, dropped_ = 0, clipped_ = 0, enlarged_ = 0;
+  std::string last_drop_;            // why the last dropped image was dropped
+  bool last_image_dropped_ = false;  // the newest image was dropped
+  std::string last_warning_;         // what was wrong with the last image used clipped or enlarged
+  std::set<std::string> enlarged_said_;  // the warnings about enlarged images logged so far
 };
 
 namespace
@@ -84,6 +100,7 @@ void PreprocessorNodelet::onInit()
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& private_nh = getPrivateNodeHandle();
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
+  image_topic_ = nh.resolveName("image");
   const std::set<std::string> own = { "queue_size", "image_transport" };
   std::set<std::string> read = configParameterNames<PreprocessorConfig>();
   read.insert(own.begin(), own.end());
@@ -118,6 +135,10 @@ void PreprocessorNodelet::onInit()
   const image_transport::SubscriberStatusCallback connect_cb =
       [this](const image_transport::SingleSubscriberPublisher&) { connectCb(); };
   pub_ = it_->advertise("image_preprocessed", 1, connect_cb, connect_cb);
+  updater_ = std::make_shared<diagnostic_updater::Updater>(nh, private_nh, getName());
+  updater_->setHardwareID("none");
+  updater_->add("preprocessing", this, &PreprocessorNodelet::diagnose);
+  diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
   NODELET_INFO("Preprocessing %s -> %s (%s); parameters on %s", nh.resolveName("image").c_str(),
                nh.resolveName("image_preprocessed").c_str(), initial.serialize().c_str(), params_topic.c_str());
 }
@@ -172,21 +193,48 @@ void PreprocessorNodelet::announce(const PreprocessingParams& params)
   params_pub_.publish(msg);
 }
 
-bool PreprocessorNodelet::checkInput(const sensor_msgs::Image& msg, PixelFormat* format)
+void PreprocessorNodelet::dropImage(ImageProblem kind, const std::string& sentence)
 {
-  std::string problem;
-  const ImageProblem kind = imageMessageProblem(msg, format, &problem);
-  if (kind == ImageProblem::kNone)
-    return true;
-  // At most one message per 5 s for each kind of problem, so a second kind is said at once.
+  ++dropped_;
+  last_drop_ = sentence;
+  last_image_dropped_ = true;
   const ros::WallTime now = ros::WallTime::now();
   ros::WallTime& last = last_problem_time_[static_cast<size_t>(kind)];
   if (last.isZero() || (now - last).toSec() >= 5.0)
   {
-    NODELET_ERROR("Dropping %s", problem.c_str());
+    NODELET_ERROR("Dropping %s", sentence.c_str());
     last = now;
   }
-  return false;
+}
+
+void PreprocessorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
+{
+  if (images_in_ == 0)
+  {
+    if (pub_.getNumSubscribers() == 0)
+      stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "idle: nothing subscribes to " + pub_.getTopic());
+    else
+      stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for images on " + image_topic_);
+  }
+  else if (last_image_dropped_)
+  {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "dropping " + last_drop_);
+  }
+  else if (!last_warning_.empty())
+  {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, last_warning_);
+  }
+  else
+  {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "preprocessing");
+  }
+  stat.add("images in", images_in_);
+  stat.add("images published", published_);
+  stat.add("images dropped", dropped_);
+  stat.add("last dropped image", last_drop_.empty() ? std::string("(none)") : last_drop_);
+  stat.add("32FC1 images clipped to [0, 1]", clipped_);
+  stat.add("images smaller than the output (enlarged)", enlarged_);
+  stat.add("parameters", preprocessor_.params().serialize());
 }
 
 void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
@@ -203,9 +251,15 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     NODELET_INFO("Preprocessing parameters now %s", params.serialize().c_str());
   }
 
+  ++images_in_;
   PixelFormat format;
-  if (!checkInput(*msg, &format))
+  std::string problem;
+  const ImageProblem kind = imageMessageProblem(*msg, &format, &problem);
+  if (kind != ImageProblem::kNone)
+  {
+    dropImage(kind, problem);
     return;
+  }
 
   const sensor_msgs::ImagePtr out = boost::make_shared<sensor_msgs::Image>();
   out->header = msg->header;
@@ -219,16 +273,34 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   try
   {
     const cv_bridge::CvImageConstPtr input = cv_bridge::toCvShare(msg);
-    std::string clipped;
-    if (format == PixelFormat::kMono32F && floatOutsideUnitRange(input->image, &clipped))
-      NODELET_WARN_THROTTLE(10.0, "A %ux%u '%s' image: %s (scale the images to [0, 1])", msg->width, msg->height,
-                            msg->encoding.c_str(), clipped.c_str());
+    char image[160];
+    std::snprintf(image, sizeof(image), "a %ux%u '%s' image", msg->width, msg->height, msg->encoding.c_str());
+    std::string warning;
+    if (format == PixelFormat::kMono32F && floatOutsideUnitRange(input->image, &warning))
+    {
+      ++clipped_;
+      last_warning_ = image + (": " + warning + " (scale the images to [0, 1])");
+      NODELET_WARN_THROTTLE(10.0, "Using %s", last_warning_.c_str());
+    }
+    else if (inputSmallerThanOutput(input->image.cols, input->image.rows, params, &warning))
+    {
+      ++enlarged_;
+      last_warning_ = image + (" " + warning);
+      // Said once for each input and output size (a camera mode), and kept in the diagnostics.
+      if (enlarged_said_.size() < 64 && enlarged_said_.insert(last_warning_).second)
+        NODELET_WARN("Using %s", last_warning_.c_str());
+    }
+    else
+    {
+      last_warning_.clear();
+    }
     preprocessor_.process(input->image, format, output);
   }
   catch (const std::exception& e)  // PreprocessingError, cv_bridge::Exception, cv::Exception
   {
-    NODELET_ERROR_THROTTLE(5.0, "Dropping %ux%u '%s' image: %s", msg->width, msg->height, msg->encoding.c_str(),
-                           e.what());
+    char image[160];
+    std::snprintf(image, sizeof(image), "%ux%u '%s' image: ", msg->width, msg->height, msg->encoding.c_str());
+    dropImage(ImageProblem::kNone, image + std::string(e.what()));
     return;
   }
   if (output.data != &out->data[0])
@@ -241,6 +313,8 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     output.copyTo(wrapped);
   }
   pub_.publish(out);
+  last_image_dropped_ = false;
+  ++published_;
 }
 
 }  // namespace along_route_localization
