@@ -4,6 +4,8 @@
 //             <namespace of image_preprocessed>/preprocessing_params (latched, from the preprocessor):
 //             stored in the map, so the map records exactly what made its keyframes
 //             odom (nav_msgs/Odometry, optional: only the min_distance policy reads it)
+// Publishes:  /diagnostics (state, keyframes taken and written, the writer's backlog, frames not
+//             recorded and why the last one was not)
 // Services:   ~start, ~pause, ~finish (std_srvs/Trigger)
 // Parameters: ~map (path of the map file), ~autostart (true), ~flush_period (1.0 s),
 //             ~max_queue (1000 keyframes waiting for the writer), ~queue_size (100);
@@ -18,6 +20,7 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -27,6 +30,7 @@
 
 #include <boost/thread/recursive_mutex.hpp>
 #include <cv_bridge/cv_bridge.h>
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <image_transport/image_transport.h>
 #include <nav_msgs/Odometry.h>
@@ -37,6 +41,7 @@
 
 #include "along_route_localization/MapRecorderConfig.h"
 #include "along_route_localization/preprocessing.h"
+#include "ros/diagnostics_timer.h"
 #include "ros/map_io.h"
 #include "ros/private_parameters.h"
 
@@ -75,6 +80,10 @@ private:
   bool pauseCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool finishCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool isKeyframe(const sensor_msgs::ImageConstPtr& msg, const KeyframePolicy& policy);
+  /// A frame that arrived while recording and is not recorded: counted, and kept for the diagnostics
+  /// (`level` of diagnostic_msgs::DiagnosticStatus). The callers log it, throttled.
+  void refuseFrame(const std::string& sentence, uint8_t level);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
   void writerLoop();
 
   // Static parameters, read in onInit.
@@ -86,6 +95,8 @@ private:
   image_transport::Subscriber image_sub_;
   ros::Subscriber params_sub_, odom_sub_;
   ros::ServiceServer start_srv_, pause_srv_, finish_srv_;
+  std::shared_ptr<diagnostic_updater::Updater> updater_;
+  ros::WallTimer diagnostics_timer_;
 
   // Keyframe policy: written by configCb, copied by imageCb; guarded by config_mutex_.
   boost::recursive_mutex config_mutex_;
@@ -99,6 +110,10 @@ private:
   double distance_since_keyframe_m_ = 0.0;
   bool have_odom_ = false;
   double last_x_ = 0.0, last_y_ = 0.0, last_z_ = 0.0;
+  uint64_t frames_seen_ = 0, frames_refused_ = 0;  // while recording
+  std::string last_refusal_;                        // why the last refused frame was not recorded
+  uint8_t last_refusal_level_ = 0;
+  bool last_frame_refused_ = false;  // the newest frame seen while recording was not recorded
 
   // Shared between the callbacks and the writer thread; guarded by queue_mutex_.
   std::mutex queue_mutex_;
@@ -160,6 +175,10 @@ void MapRecorderNodelet::onInit()
     NODELET_ERROR("%s", sentence.c_str());
   reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<MapRecorderConfig>>(config_mutex_, private_nh);
   reconfigure_server_->setCallback([this](MapRecorderConfig& config, uint32_t level) { configCb(config, level); });
+  updater_ = std::make_shared<diagnostic_updater::Updater>(nh, private_nh, getName());
+  updater_->setHardwareID("none");
+  updater_->add("recording", this, &MapRecorderNodelet::diagnose);
+  diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
 
   if (map_path_.empty())
   {
@@ -285,29 +304,40 @@ bool MapRecorderNodelet::isKeyframe(const sensor_msgs::ImageConstPtr& msg, const
 void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
 {
   std::shared_ptr<const PreprocessingParams> recording_params;
+  std::string writer_error;
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     if (state_ != State::kRecording)
       return;
-    if (!writer_error_.empty())
-    {
-      NODELET_ERROR_THROTTLE(5.0, "Not recording: %s", writer_error_.c_str());
-      return;
-    }
+    writer_error = writer_error_;
     recording_params = recording_params_;
+  }
+  ++frames_seen_;
+  using diagnostic_msgs::DiagnosticStatus;
+  if (!writer_error.empty())
+  {
+    refuseFrame("not recording: " + writer_error, DiagnosticStatus::ERROR);
+    NODELET_ERROR_THROTTLE(5.0, "Not recording: %s", writer_error.c_str());
+    return;
   }
   if (!announced_params_)
   {
+    refuseFrame("waiting for the preprocessing parameters on " + params_sub_.getTopic() +
+                    " (is the preprocessor running?)",
+                DiagnosticStatus::WARN);
     NODELET_WARN_THROTTLE(5.0, "Waiting for the preprocessing parameters on %s (is the preprocessor running?); "
                                "frames are not recorded until they arrive", params_sub_.getTopic().c_str());
     return;
   }
   if (recording_params && *recording_params != *announced_params_)
   {
+    const std::string difference = preprocessingDifference(*recording_params, *announced_params_);
+    refuseFrame("the preprocessing parameters changed during the teach (" + difference + ")",
+                DiagnosticStatus::ERROR);
     NODELET_ERROR_THROTTLE(5.0, "The preprocessing parameters changed during the teach (%s); a map holds one set, "
                                 "so these frames are not recorded. Change them back, or ~finish and record "
                                 "another map",
-                           preprocessingDifference(*recording_params, *announced_params_).c_str());
+                           difference.c_str());
     return;
   }
   if (msg->encoding != sensor_msgs::image_encodings::MONO8 ||
@@ -315,9 +345,12 @@ void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
       static_cast<int>(msg->height) != announced_params_->output_height ||
       msg->step < msg->width || msg->data.size() < static_cast<size_t>(msg->step) * msg->height)
   {
-    NODELET_ERROR_THROTTLE(5.0, "Dropping a %ux%u '%s' frame: the preprocessing parameters make %dx%d mono8",
-                           msg->width, msg->height, msg->encoding.c_str(), announced_params_->output_width,
-                           announced_params_->output_height);
+    char sentence[256];
+    std::snprintf(sentence, sizeof(sentence), "a %ux%u '%s' frame: the preprocessing parameters make %dx%d mono8",
+                  msg->width, msg->height, msg->encoding.c_str(), announced_params_->output_width,
+                  announced_params_->output_height);
+    refuseFrame(sentence, DiagnosticStatus::ERROR);
+    NODELET_ERROR_THROTTLE(5.0, "Dropping %s", sentence);
     return;
   }
 
@@ -327,11 +360,16 @@ void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     policy = policy_;
   }
   if (!isKeyframe(msg, policy))
+  {
+    last_frame_refused_ = false;  // seen, and not a keyframe by the policy
     return;
+  }
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     if (queue_.size() >= max_queue_)
     {
+      refuseFrame("the map writer is " + std::to_string(queue_.size()) + " keyframes behind (disk too slow?)",
+                  diagnostic_msgs::DiagnosticStatus::ERROR);
       NODELET_ERROR_THROTTLE(5.0, "The map writer is %zu keyframes behind (disk too slow?); dropping keyframes",
                              queue_.size());
       return;
@@ -342,9 +380,61 @@ void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     ++keyframes_queued_;
   }
   writer_cv_.notify_one();
+  last_frame_refused_ = false;
   last_keyframe_ = msg;
   frames_since_keyframe_ = 0;
   distance_since_keyframe_m_ = 0.0;
+}
+
+void MapRecorderNodelet::refuseFrame(const std::string& sentence, uint8_t level)
+{
+  ++frames_refused_;
+  last_refusal_ = sentence;
+  last_refusal_level_ = level;
+  last_frame_refused_ = true;
+}
+
+void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
+{
+  using diagnostic_msgs::DiagnosticStatus;
+  State state;
+  size_t queued, written, backlog;
+  std::string writer_error, finish_message;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    state = state_;
+    queued = keyframes_queued_;
+    written = keyframes_written_;
+    backlog = queue_.size();
+    writer_error = writer_error_;
+    finish_message = finish_message_;
+  }
+  static const char* const kStates[] = { "idle", "recording", "paused", "finished" };
+  const std::string keyframes = std::to_string(queued) + (queued == 1 ? " keyframe" : " keyframes");
+  if (map_path_.empty())
+    stat.summary(DiagnosticStatus::ERROR, "no ~map parameter: nothing is recorded");
+  else if (!writer_error.empty())
+    stat.summary(DiagnosticStatus::ERROR, "not recording: " + writer_error);
+  else if (state == State::kFinished)
+    stat.summary(DiagnosticStatus::OK, finish_message.empty() ? std::string("finishing") : "finished: " + finish_message);
+  else if (state == State::kIdle)
+    stat.summary(DiagnosticStatus::OK, "idle: call ~start to record");
+  else if (state == State::kPaused)
+    stat.summary(DiagnosticStatus::OK, "paused after " + keyframes);
+  else if (last_frame_refused_)
+    stat.summary(last_refusal_level_, "not recording the frames: " + last_refusal_);
+  else if (frames_seen_ == 0)
+    stat.summary(DiagnosticStatus::WARN, "recording, waiting for images on " + image_sub_.getTopic());
+  else
+    stat.summary(DiagnosticStatus::OK, "recording: " + keyframes);
+  stat.add("map", map_path_.empty() ? std::string("(none)") : map_path_);
+  stat.add("state", kStates[static_cast<int>(state)]);
+  stat.add("frames seen while recording", frames_seen_);
+  stat.add("keyframes taken", queued);
+  stat.add("keyframes written", written);
+  stat.add("keyframes waiting for the writer", backlog);
+  stat.add("frames not recorded", frames_refused_);
+  stat.add("last frame not recorded", last_refusal_.empty() ? std::string("(none)") : last_refusal_);
 }
 
 bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::Trigger::Response& res)

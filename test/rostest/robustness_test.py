@@ -12,7 +12,7 @@ import unittest
 import numpy as np
 import rospy
 import rostest
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from dynamic_reconfigure.client import Client as ReconfigureClient
 from nodelet.srv import NodeletLoad, NodeletUnload
 from sensor_msgs.msg import Image
@@ -44,7 +44,7 @@ class RobustnessTest(unittest.TestCase):
         cls.rosout = fx.RosoutCollector()
         cls.preprocessed = fx.Collector('/repeat/image_preprocessed', Image)
         cls.localizations = fx.Collector('/repeat/localization', Localization, queue_size=10000)
-        cls.diagnostics = fx.Collector('/diagnostics', DiagnosticArray, queue_size=10000)
+        cls.diagnostics = fx.DiagnosticsCollector()
         cls.camera = rospy.Publisher('/repeat_camera/image_raw', Image, queue_size=10000)
         cls.direct = rospy.Publisher('/repeat/image_preprocessed', Image, queue_size=100)
         finish, loaded = fx.teach_and_load(os.path.join(cls.tmp, 'teach.bag'), FRAMES, cls.map_path)
@@ -111,43 +111,59 @@ class RobustnessTest(unittest.TestCase):
         fx.wait_for(lambda: self.rosout.matching('32FC1 values from 250 to 310, outside the [0, 1] read as '
                                                  'intensity: clipped'), 10, 'the warning')
 
-    def status_when(self, suffix, predicate, what):
-        """The first diagnostic status, published from now on, whose name ends with suffix and that
-        satisfies predicate."""
-        self.diagnostics.take()
-        found = []
-
-        def seen():
-            found.extend(s for d in self.diagnostics.take() for s in d.status
-                         if s.name.endswith(suffix) and predicate(s))
-            return bool(found)
-        fx.wait_for(seen, 15, what)
-        return found[0]
-
     def test_diagnostics_say_why_frames_are_dropped_until_good_ones_come(self):
         # Only bad frames: each nodelet's diagnostics turn to ERROR, naming what is wrong. A good frame
         # turns them back; the count of dropped frames stays.
         preprocessor, localizer = 'repeat/preprocessor: preprocessing', 'repeat/localizer: localization'
-        ERROR = DiagnosticStatus.ERROR
+        status, error = self.diagnostics.next_status, DiagnosticStatus.ERROR
         self.camera.publish(self.stamped(image('yuv422', 32, 16, bytes(32 * 16 * 2))))
-        self.status_when(preprocessor, lambda s: s.level == ERROR and "unsupported encoding 'yuv422'" in s.message,
-                         'the preprocessor diagnostics naming the encoding')
+        status(preprocessor, lambda s: s.level == error and "unsupported encoding 'yuv422'" in s.message,
+               'the preprocessor diagnostics naming the encoding')
         self.direct.publish(self.stamped(image('mono8', 32, 16, bytes(32 * 16))))
-        self.status_when(localizer, lambda s: s.level == ERROR and 'dropping a 32x16' in s.message
-                         and 'holds 64x32 mono8 keyframes' in s.message, 'the localizer diagnostics naming the size')
+        status(localizer, lambda s: s.level == error and 'dropping a 32x16' in s.message
+               and 'holds 64x32 mono8 keyframes' in s.message, 'the localizer diagnostics naming the size')
         self.direct.publish(self.stamped(image('bgr8', 64, 32, bytes(64 * 32 * 3))))
-        self.status_when(localizer, lambda s: s.level == ERROR and "a 64x32 'bgr8' frame" in s.message
-                         and 'takes the preprocessor' in s.message, 'the localizer diagnostics naming the encoding')
+        status(localizer, lambda s: s.level == error and "a 64x32 'bgr8' frame" in s.message
+               and 'takes the preprocessor' in s.message, 'the localizer diagnostics naming the encoding')
         good = self.good(5)
         self.camera.publish(good)
         self.wait_for_stamp(self.localizations, good.header.stamp, 'the good frame localized')
-        values = lambda s: {v.key: v.value for v in s.values}  # noqa: E731
-        ok = self.status_when(preprocessor, lambda s: s.level == DiagnosticStatus.OK, 'the preprocessor OK again')
-        self.assertGreaterEqual(int(values(ok)['images dropped']), 1)
-        self.assertIn("unsupported encoding 'yuv422'", values(ok)['last dropped image'])
-        back = self.status_when(localizer, lambda s: s.level != ERROR, 'the localizer without error again')
-        self.assertGreaterEqual(int(values(back)['frames dropped']), 2)
-        self.assertIn("'bgr8'", values(back)['last dropped frame'])
+        ok = fx.status_values(status(preprocessor, lambda s: s.level == DiagnosticStatus.OK,
+                                     'the preprocessor OK again'))
+        self.assertGreaterEqual(int(ok['images dropped']), 1)
+        self.assertIn("unsupported encoding 'yuv422'", ok['last dropped image'])
+        back = fx.status_values(status(localizer, lambda s: s.level != error, 'the localizer without error again'))
+        self.assertGreaterEqual(int(back['frames dropped']), 2)
+        self.assertIn("'bgr8'", back['last dropped frame'])
+
+    def test_a_recorder_given_frames_it_cannot_record_says_so(self):
+        # A recorder loaded into the repeat manager, recording the repeat's preprocessed images: a frame
+        # of the wrong size is not recorded and its diagnostics say why, until a good one is.
+        manager, name = '/repeat/repeat_manager', '/repeat/second_recorder'
+        path = os.path.join(self.tmp, 'second_map.bag')
+        rospy.set_param(name + '/map', path)
+        loaded = rospy.ServiceProxy(manager + '/load_nodelet', NodeletLoad)(
+            name, 'along_route_localization/map_recorder', [], [], [], '')
+        self.assertTrue(loaded.success)
+        status, suffix = self.diagnostics.next_status, 'repeat/second_recorder: recording'
+        try:
+            fx.wait_for(lambda: self.direct.get_num_connections() > 1, 10, 'the recorder to subscribe')
+            waiting = status(suffix, lambda s: True, 'the recorder to report')
+            self.assertEqual((waiting.level, waiting.message), (DiagnosticStatus.WARN,
+                             'recording, waiting for images on /repeat/image_preprocessed'))
+            self.direct.publish(self.stamped(image('mono8', 32, 16, bytes(32 * 16))))
+            refused = status(suffix, lambda s: s.level == DiagnosticStatus.ERROR, 'the recorder to refuse the frame')
+            self.assertEqual(refused.message, "not recording the frames: a 32x16 'mono8' frame: the preprocessing "
+                                              "parameters make 64x32 mono8")
+            good = self.good(2)
+            self.camera.publish(good)
+            recording = status(suffix, lambda s: s.level == DiagnosticStatus.OK, 'the recorder to record again')
+            self.assertEqual(recording.message, 'recording: 1 keyframe')
+            values = fx.status_values(recording)
+            self.assertEqual((values['frames not recorded'], values['frames seen while recording']), ('1', '2'))
+        finally:
+            rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)(name)
+            fx.remove(path)
 
     def test_frames_smaller_than_the_output_pass_enlarged_with_a_warning(self):
         dot = self.stamped(image('mono8', 1, 1, b'\x80'))
@@ -155,9 +171,9 @@ class RobustnessTest(unittest.TestCase):
         self.wait_for_stamp(self.preprocessed, dot.header.stamp, 'the enlarged frame')
         words = "a 1x1 'mono8' image smaller than the 64x32 output: enlarged"
         fx.wait_for(lambda: self.rosout.matching('Using ' + words), 10, 'the warning')
-        status = self.status_when('repeat/preprocessor: preprocessing', lambda s: words in s.message,
-                                  'the preprocessor diagnostics saying so')
-        self.assertEqual(status.level, DiagnosticStatus.WARN)
+        said = self.diagnostics.next_status('repeat/preprocessor: preprocessing', lambda s: words in s.message,
+                                            'the preprocessor diagnostics saying so')
+        self.assertEqual(said.level, DiagnosticStatus.WARN)
 
     def test_frames_of_another_size_than_the_map_are_refused(self):
         small = self.stamped(image('mono8', 32, 16, bytes(32 * 16)))

@@ -128,6 +128,31 @@ class RosoutCollector(Collector):
         return [m for m in self.snapshot() if text in m.msg and (level is None or m.level == level)]
 
 
+class DiagnosticsCollector(Collector):
+    """Keeps /diagnostics; finds a nodelet's status in what arrives."""
+
+    def __init__(self):
+        from diagnostic_msgs.msg import DiagnosticArray
+        Collector.__init__(self, '/diagnostics', DiagnosticArray, queue_size=10000)
+
+    def next_status(self, suffix, predicate, what, timeout=15.0):
+        """The first status arriving from now on whose name ends with suffix (e.g. 'repeat/localizer:
+        localization') and that satisfies predicate."""
+        self.take()
+        found = []
+
+        def seen():
+            found.extend(s for d in self.take() for s in d.status if s.name.endswith(suffix) and predicate(s))
+            return bool(found)
+        wait_for(seen, timeout, what)
+        return found[0]
+
+
+def status_values(status):
+    """A diagnostic status's key-value pairs as a dict."""
+    return {v.key: v.value for v in status.values}
+
+
 def map_keyframes(path):
     """(keyframe messages, preprocessing text) of a map file, read with the Python rosbag API."""
     with rosbag.Bag(path) as bag:

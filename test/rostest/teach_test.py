@@ -9,6 +9,7 @@ import unittest
 
 import rospy
 import rostest
+from diagnostic_msgs.msg import DiagnosticStatus
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
@@ -29,6 +30,7 @@ class TeachTest(unittest.TestCase):
         cls.maps = {ns: rospy.get_param('~map_' + ns) for ns in ('every', 'nth', 'manual')}
         cls.preprocessed = fx.Collector('/every/image_preprocessed', Image)
         cls.manual_preprocessed = fx.Collector('/manual/image_preprocessed', Image)
+        cls.diagnostics = fx.DiagnosticsCollector()
         for ns in cls.maps:
             fx.wait_for_service('/%s/map_recorder/finish' % ns)
         cls.announced = rospy.wait_for_message('/every/preprocessing_params', String, timeout=30)
@@ -46,6 +48,12 @@ class TeachTest(unittest.TestCase):
         # arrived here, the service calls below queue behind them in the recorder's callback queue.
         fx.wait_for(lambda: min(cls.preprocessed.count(), nth_preprocessed.count(),
                                 cls.manual_preprocessed.count()) >= FRAMES, 30, 'the first play to be preprocessed')
+        # What the recorders' diagnostics say now: every/ has taken and written the whole play, manual/
+        # waits for ~start.
+        cls.recording = cls.diagnostics.next_status(
+            'every/map_recorder: recording', lambda s: fx.status_values(s)['keyframes written'] == str(FRAMES),
+            'every/ to report the first play written')
+        cls.idle = cls.diagnostics.next_status('manual/map_recorder: recording', lambda s: True, 'manual/ to report')
         cls.manual_start = rospy.ServiceProxy('/manual/map_recorder/start', Trigger)()
         # Second play: every/ and nth/ see the route twice, so they are finished after the first.
         cls.finish = {}
@@ -55,6 +63,8 @@ class TeachTest(unittest.TestCase):
         fx.wait_for(lambda: cls.manual_preprocessed.count() >= 2 * FRAMES, 30, 'the second play')
         cls.finish['manual'] = rospy.ServiceProxy('/manual/map_recorder/finish', Trigger)()
         cls.start_after_finish = rospy.ServiceProxy('/every/map_recorder/start', Trigger)()
+        cls.finished = cls.diagnostics.next_status('every/map_recorder: recording', lambda s: True,
+                                                   'every/ to report after its finish')
 
     @classmethod
     def tearDownClass(cls):
@@ -104,6 +114,19 @@ class TeachTest(unittest.TestCase):
             self.assertEqual(f.read(), self.earlier_manual_map)
         self.assertIn('the map that was there before is kept as ' + kept[0], self.finish['manual'].message)
         self.assertEqual(self.replaced(self.maps['every']), [], 'no file was there: nothing to keep')
+
+    def test_diagnostics_say_what_the_recorder_is_doing(self):
+        values = fx.status_values(self.recording)
+        self.assertEqual(self.recording.level, DiagnosticStatus.OK)
+        self.assertEqual(self.recording.message, 'recording: %d keyframes' % FRAMES)
+        self.assertEqual((values['state'], values['keyframes taken'], values['frames seen while recording']),
+                         ('recording', str(FRAMES), str(FRAMES)))
+        self.assertEqual((values['frames not recorded'], values['map']), ('0', self.maps['every']))
+        self.assertEqual((self.idle.level, self.idle.message), (DiagnosticStatus.OK, 'idle: call ~start to record'))
+        self.assertEqual(fx.status_values(self.idle)['keyframes taken'], '0')
+        # every/ was finished after the first play and ignored the second.
+        self.assertEqual(self.finished.message, 'finished: ' + self.finish['every'].message)
+        self.assertEqual(fx.status_values(self.finished)['frames seen while recording'], str(FRAMES))
 
     def test_finished_recorder_refuses_to_start_again(self):
         self.assertFalse(self.start_after_finish.success)
