@@ -11,7 +11,6 @@
 //             expected input rate for diagnostics); cfg/Localizer.cfg (dynamic, applied between
 //             frames); any other core parameter by its parameters.h name (static, e.g. ~cost_function)
 #include <algorithm>
-#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -37,7 +36,7 @@
 #include "along_route_localization/LocalizerConfig.h"
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/parameters.h"
-#include "ros/diagnostics_timer.h"
+#include "ros/diagnostics.h"
 #include "ros/map_io.h"
 #include "ros/private_parameters.h"
 #include "ros/reconfigure.h"
@@ -59,17 +58,16 @@ private:
   void warnAboutUnreadParameters(const ros::NodeHandle& private_nh);
   LocalizerParams effectiveParams(const LocalizerParams& requested) const;
   void publishDebugImage(const std_msgs::Header& header, int keyframe);
-  /// Why the frame is not localized, said at most once per 5 s for each kind (so a second kind is said
-  /// at once) and kept for the diagnostics.
-  enum class Drop
+  /// Kinds of reason not to localize a frame (DroppedFrames logs each kind apart).
+  enum Drop
   {
     kNoMap,
     kRefusedMap,
     kEncoding,
     kSize,
-    kFailure,
-    kCount
+    kFailure
   };
+  /// Counts the frame as dropped for the diagnostics and logs why, throttled per kind.
   void dropFrame(Drop kind, const std::string& sentence);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
@@ -108,10 +106,7 @@ private:
   ros::Time last_stamp_;
   LocalizationResult last_result_;
   uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0, gaps_ = 0, long_gaps_ = 0, missed_frames_ = 0;
-  uint64_t dropped_frames_ = 0;
-  std::string last_drop_;            // why the last dropped frame was dropped
-  bool last_frame_dropped_ = false;  // the newest frame was dropped
-  std::array<ros::WallTime, static_cast<size_t>(Drop::kCount)> last_drop_log_;
+  DroppedFrames dropped_;
   double time_sum_ms_ = 0.0, time_max_ms_ = 0.0, last_time_ms_ = 0.0;
   const void* last_input_data_ = nullptr;  // for checking the zero-copy hand-over
   ros::Time last_input_stamp_;
@@ -482,12 +477,12 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
 
   if (!map_)
   {
-    dropFrame(Drop::kNoMap, map_error_);
+    dropFrame(kNoMap, map_error_);
     return;
   }
   if (!localizer_)
   {
-    dropFrame(Drop::kRefusedMap, refusal_);
+    dropFrame(kRefusedMap, refusal_);
     return;
   }
   if (!announced_ && !unchecked_warned_)
@@ -503,7 +498,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
                   "a %ux%u '%s' frame: the localizer takes the preprocessor's mono8 output (is %s remapped to a "
                   "camera topic?)",
                   msg->width, msg->height, msg->encoding.c_str(), image_sub_.getTopic().c_str());
-    dropFrame(Drop::kEncoding, sentence);
+    dropFrame(kEncoding, sentence);
     return;
   }
   if (static_cast<int>(msg->width) != map_->width() || static_cast<int>(msg->height) != map_->height() ||
@@ -513,7 +508,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
                   "a %ux%u '%s' frame (step %u, %zu bytes): map %s holds %dx%d mono8 keyframes", msg->width,
                   msg->height, msg->encoding.c_str(), msg->step, msg->data.size(), map_path_.c_str(), map_->width(),
                   map_->height());
-    dropFrame(Drop::kSize, sentence);
+    dropFrame(kSize, sentence);
     return;
   }
   const cv_bridge::CvImageConstPtr input = cv_bridge::toCvShare(msg);
@@ -526,7 +521,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   }
   catch (const std::exception& e)
   {
-    dropFrame(Drop::kFailure, std::string("the localizer failed on a frame: ") + e.what());
+    dropFrame(kFailure, std::string("the localizer failed on a frame: ") + e.what());
     return;
   }
   const double elapsed_ms =
@@ -576,7 +571,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     publishDebugImage(msg->header, result.keyframe);
 
   last_result_ = result;
-  last_frame_dropped_ = false;
+  dropped_.used();
   ++frames_;
   ++frames_in_period_;
   time_sum_ms_ += elapsed_ms;
@@ -619,17 +614,11 @@ void LocalizerNodelet::publishDebugImage(const std_msgs::Header& header, int key
 
 void LocalizerNodelet::dropFrame(Drop kind, const std::string& sentence)
 {
-  ++dropped_frames_;
-  last_drop_ = sentence;
-  last_frame_dropped_ = true;
-  const ros::WallTime now = ros::WallTime::now();
-  ros::WallTime& last = last_drop_log_[static_cast<size_t>(kind)];
-  if (!last.isZero() && (now - last).toSec() < 5.0)
+  if (!dropped_.drop(kind, sentence))
     return;
-  last = now;
-  if (kind == Drop::kNoMap)  // expected while a map is being taught or loaded
+  if (kind == kNoMap)  // expected while a map is being taught or loaded
     NODELET_WARN("Dropping frames: %s", sentence.c_str());
-  else if (kind == Drop::kRefusedMap)
+  else if (kind == kRefusedMap)
     NODELET_ERROR("Dropping frames: %s", sentence.c_str());
   else
     NODELET_ERROR("Dropping %s", sentence.c_str());
@@ -641,8 +630,8 @@ void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, map_error_);
   else if (!localizer_)
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, refusal_);
-  else if (last_frame_dropped_)
-    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "dropping " + last_drop_);
+  else if (dropped_.newestDropped())
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "dropping " + dropped_.lastReason());
   else if (frames_ == 0)
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for images on " + image_sub_.getTopic());
   else if (last_result_.status == LocalizationStatus::kLost)
@@ -653,8 +642,7 @@ void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("map", map_ ? map_path_ : std::string("(none)"));
   stat.add("keyframes", map_ ? map_->size() : 0);
   stat.add("frames processed", frames_);
-  stat.add("frames dropped", dropped_frames_);
-  stat.add("last dropped frame", last_drop_.empty() ? std::string("(none)") : last_drop_);
+  dropped_.addTo(stat, "frame");
   stat.add("resets (time went backwards)", resets_);
   stat.add("gaps in the image stamps", gaps_);
   stat.add("frames missed in gaps that did not restart the search", missed_frames_);

@@ -41,7 +41,7 @@
 
 #include "along_route_localization/MapRecorderConfig.h"
 #include "along_route_localization/preprocessing.h"
-#include "ros/diagnostics_timer.h"
+#include "ros/diagnostics.h"
 #include "ros/map_io.h"
 #include "ros/private_parameters.h"
 
@@ -80,9 +80,15 @@ private:
   bool pauseCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool finishCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool isKeyframe(const sensor_msgs::ImageConstPtr& msg, const KeyframePolicy& policy);
-  /// A frame that arrived while recording and is not recorded: counted, and kept for the diagnostics
-  /// (`level` of diagnostic_msgs::DiagnosticStatus). The callers log it, throttled.
-  void refuseFrame(const std::string& sentence, uint8_t level);
+  /// Kinds of reason not to record a frame that arrived while recording (DroppedFrames logs each apart).
+  enum Refusal
+  {
+    kWriterFailed,
+    kNoParameters,  // the only one that is expected (at start-up), so a warning
+    kParametersChanged,
+    kWrongSize,
+    kWriterBehind
+  };
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
   void writerLoop();
 
@@ -110,10 +116,8 @@ private:
   double distance_since_keyframe_m_ = 0.0;
   bool have_odom_ = false;
   double last_x_ = 0.0, last_y_ = 0.0, last_z_ = 0.0;
-  uint64_t frames_seen_ = 0, frames_refused_ = 0;  // while recording
-  std::string last_refusal_;                        // why the last refused frame was not recorded
-  uint8_t last_refusal_level_ = 0;
-  bool last_frame_refused_ = false;  // the newest frame seen while recording was not recorded
+  uint64_t frames_seen_ = 0;  // while recording
+  DroppedFrames refused_;     // frames seen while recording and not recorded
 
   // Shared between the callbacks and the writer thread; guarded by queue_mutex_.
   std::mutex queue_mutex_;
@@ -313,31 +317,29 @@ void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     recording_params = recording_params_;
   }
   ++frames_seen_;
-  using diagnostic_msgs::DiagnosticStatus;
   if (!writer_error.empty())
   {
-    refuseFrame("not recording: " + writer_error, DiagnosticStatus::ERROR);
-    NODELET_ERROR_THROTTLE(5.0, "Not recording: %s", writer_error.c_str());
+    if (refused_.drop(kWriterFailed, "not recording: " + writer_error))
+      NODELET_ERROR("Not recording: %s", writer_error.c_str());
     return;
   }
   if (!announced_params_)
   {
-    refuseFrame("waiting for the preprocessing parameters on " + params_sub_.getTopic() +
-                    " (is the preprocessor running?)",
-                DiagnosticStatus::WARN);
-    NODELET_WARN_THROTTLE(5.0, "Waiting for the preprocessing parameters on %s (is the preprocessor running?); "
-                               "frames are not recorded until they arrive", params_sub_.getTopic().c_str());
+    if (refused_.drop(kNoParameters, "waiting for the preprocessing parameters on " + params_sub_.getTopic() +
+                                         " (is the preprocessor running?)"))
+      NODELET_WARN("Waiting for the preprocessing parameters on %s (is the preprocessor running?); frames are not "
+                   "recorded until they arrive",
+                   params_sub_.getTopic().c_str());
     return;
   }
   if (recording_params && *recording_params != *announced_params_)
   {
     const std::string difference = preprocessingDifference(*recording_params, *announced_params_);
-    refuseFrame("the preprocessing parameters changed during the teach (" + difference + ")",
-                DiagnosticStatus::ERROR);
-    NODELET_ERROR_THROTTLE(5.0, "The preprocessing parameters changed during the teach (%s); a map holds one set, "
-                                "so these frames are not recorded. Change them back, or ~finish and record "
-                                "another map",
-                           difference.c_str());
+    if (refused_.drop(kParametersChanged, "the preprocessing parameters changed during the teach (" + difference +
+                                              ")"))
+      NODELET_ERROR("The preprocessing parameters changed during the teach (%s); a map holds one set, so these "
+                    "frames are not recorded. Change them back, or ~finish and record another map",
+                    difference.c_str());
     return;
   }
   if (msg->encoding != sensor_msgs::image_encodings::MONO8 ||
@@ -349,8 +351,8 @@ void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     std::snprintf(sentence, sizeof(sentence), "a %ux%u '%s' frame: the preprocessing parameters make %dx%d mono8",
                   msg->width, msg->height, msg->encoding.c_str(), announced_params_->output_width,
                   announced_params_->output_height);
-    refuseFrame(sentence, DiagnosticStatus::ERROR);
-    NODELET_ERROR_THROTTLE(5.0, "Dropping %s", sentence);
+    if (refused_.drop(kWrongSize, sentence))
+      NODELET_ERROR("Dropping %s", sentence);
     return;
   }
 
@@ -361,17 +363,17 @@ void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   }
   if (!isKeyframe(msg, policy))
   {
-    last_frame_refused_ = false;  // seen, and not a keyframe by the policy
+    refused_.used();  // seen, and not a keyframe by the policy
     return;
   }
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     if (queue_.size() >= max_queue_)
     {
-      refuseFrame("the map writer is " + std::to_string(queue_.size()) + " keyframes behind (disk too slow?)",
-                  diagnostic_msgs::DiagnosticStatus::ERROR);
-      NODELET_ERROR_THROTTLE(5.0, "The map writer is %zu keyframes behind (disk too slow?); dropping keyframes",
-                             queue_.size());
+      const std::string sentence =
+          "the map writer is " + std::to_string(queue_.size()) + " keyframes behind (disk too slow?)";
+      if (refused_.drop(kWriterBehind, sentence))
+        NODELET_ERROR("Dropping keyframes: %s", sentence.c_str());
       return;
     }
     if (!recording_params_)
@@ -380,18 +382,10 @@ void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     ++keyframes_queued_;
   }
   writer_cv_.notify_one();
-  last_frame_refused_ = false;
+  refused_.used();
   last_keyframe_ = msg;
   frames_since_keyframe_ = 0;
   distance_since_keyframe_m_ = 0.0;
-}
-
-void MapRecorderNodelet::refuseFrame(const std::string& sentence, uint8_t level)
-{
-  ++frames_refused_;
-  last_refusal_ = sentence;
-  last_refusal_level_ = level;
-  last_frame_refused_ = true;
 }
 
 void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
@@ -421,8 +415,9 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
     stat.summary(DiagnosticStatus::OK, "idle: call ~start to record");
   else if (state == State::kPaused)
     stat.summary(DiagnosticStatus::OK, "paused after " + keyframes);
-  else if (last_frame_refused_)
-    stat.summary(last_refusal_level_, "not recording the frames: " + last_refusal_);
+  else if (refused_.newestDropped())
+    stat.summary(refused_.lastKind() == kNoParameters ? DiagnosticStatus::WARN : DiagnosticStatus::ERROR,
+                 "not recording the frames: " + refused_.lastReason());
   else if (frames_seen_ == 0)
     stat.summary(DiagnosticStatus::WARN, "recording, waiting for images on " + image_sub_.getTopic());
   else
@@ -433,8 +428,7 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
   stat.add("keyframes taken", queued);
   stat.add("keyframes written", written);
   stat.add("keyframes waiting for the writer", backlog);
-  stat.add("frames not recorded", frames_refused_);
-  stat.add("last frame not recorded", last_refusal_.empty() ? std::string("(none)") : last_refusal_);
+  refused_.addTo(stat, "frame");
 }
 
 bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::Trigger::Response& res)

@@ -9,7 +9,6 @@
 //             /diagnostics (images in, published, dropped and why, clipped or enlarged)
 // Parameters: cfg/Preprocessor.cfg (dynamic); ~queue_size (static, default 5)
 #include <algorithm>
-#include <array>
 #include <cstdio>
 #include <memory>
 #include <mutex>
@@ -27,7 +26,7 @@
 
 #include "along_route_localization/PreprocessorConfig.h"
 #include "along_route_localization/preprocessing.h"
-#include "ros/diagnostics_timer.h"
+#include "ros/diagnostics.h"
 #include "ros/image_message.h"
 #include "ros/map_io.h"
 #include "ros/private_parameters.h"
@@ -71,10 +70,8 @@ private:
   Preprocessor preprocessor_;
   // The diagnostics timer runs on the same queue, so these need no lock either.
   bool in_place_warned_ = false;
-  std::array<ros::WallTime, 4> last_problem_time_;  // per ImageProblem: when dropImage last logged it
-  uint64_t images_in_ = 0, published_ = 0, dropped_ = 0, clipped_ = 0, enlarged_ = 0;
-  std::string last_drop_;            // why the last dropped image was dropped
-  bool last_image_dropped_ = false;  // the newest image was dropped
+  DroppedFrames dropped_;
+  uint64_t images_in_ = 0, published_ = 0, clipped_ = 0, enlarged_ = 0;
   std::string last_warning_;         // what was wrong with the last image used clipped or enlarged
   std::set<std::string> enlarged_said_;  // the warnings about enlarged images logged so far
 };
@@ -195,16 +192,8 @@ void PreprocessorNodelet::announce(const PreprocessingParams& params)
 
 void PreprocessorNodelet::dropImage(ImageProblem kind, const std::string& sentence)
 {
-  ++dropped_;
-  last_drop_ = sentence;
-  last_image_dropped_ = true;
-  const ros::WallTime now = ros::WallTime::now();
-  ros::WallTime& last = last_problem_time_[static_cast<size_t>(kind)];
-  if (last.isZero() || (now - last).toSec() >= 5.0)
-  {
+  if (dropped_.drop(static_cast<int>(kind), sentence))
     NODELET_ERROR("Dropping %s", sentence.c_str());
-    last = now;
-  }
 }
 
 void PreprocessorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
@@ -216,9 +205,9 @@ void PreprocessorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& 
     else
       stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for images on " + image_topic_);
   }
-  else if (last_image_dropped_)
+  else if (dropped_.newestDropped())
   {
-    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "dropping " + last_drop_);
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "dropping " + dropped_.lastReason());
   }
   else if (!last_warning_.empty())
   {
@@ -230,8 +219,7 @@ void PreprocessorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& 
   }
   stat.add("images in", images_in_);
   stat.add("images published", published_);
-  stat.add("images dropped", dropped_);
-  stat.add("last dropped image", last_drop_.empty() ? std::string("(none)") : last_drop_);
+  dropped_.addTo(stat, "image");
   stat.add("32FC1 images clipped to [0, 1]", clipped_);
   stat.add("images smaller than the output (enlarged)", enlarged_);
   stat.add("parameters", preprocessor_.params().serialize());
@@ -313,7 +301,7 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     output.copyTo(wrapped);
   }
   pub_.publish(out);
-  last_image_dropped_ = false;
+  dropped_.used();
   ++published_;
 }
 

@@ -160,7 +160,7 @@ class RobustnessTest(unittest.TestCase):
             recording = status(suffix, lambda s: s.level == DiagnosticStatus.OK, 'the recorder to record again')
             self.assertEqual(recording.message, 'recording: 1 keyframe')
             values = fx.status_values(recording)
-            self.assertEqual((values['frames not recorded'], values['frames seen while recording']), ('1', '2'))
+            self.assertEqual((values['frames dropped'], values['frames seen while recording']), ('1', '2'))
         finally:
             rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)(name)
             fx.remove(path)

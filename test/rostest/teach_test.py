@@ -121,7 +121,7 @@ class TeachTest(unittest.TestCase):
         self.assertEqual(self.recording.message, 'recording: %d keyframes' % FRAMES)
         self.assertEqual((values['state'], values['keyframes taken'], values['frames seen while recording']),
                          ('recording', str(FRAMES), str(FRAMES)))
-        self.assertEqual((values['frames not recorded'], values['map']), ('0', self.maps['every']))
+        self.assertEqual((values['frames dropped'], values['map']), ('0', self.maps['every']))
         self.assertEqual((self.idle.level, self.idle.message), (DiagnosticStatus.OK, 'idle: call ~start to record'))
         self.assertEqual(fx.status_values(self.idle)['keyframes taken'], '0')
         # every/ was finished after the first play and ignored the second.
