@@ -71,7 +71,7 @@ private:
   // The diagnostics timer runs on the same queue, so these need no lock either.
   bool in_place_warned_ = false;
   DroppedFrames dropped_;
-  uint64_t images_in_ = 0, published_ = 0, clipped_ = 0, enlarged_ = 0;
+  uint64_t published_ = 0, clipped_ = 0, enlarged_ = 0;  // images in: published_ + dropped_.count()
   std::string last_warning_;         // what was wrong with the last image used clipped or enlarged
   std::set<std::string> enlarged_said_;  // the warnings about enlarged images logged so far
 };
@@ -198,7 +198,8 @@ void PreprocessorNodelet::dropImage(ImageProblem kind, const std::string& senten
 
 void PreprocessorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
 {
-  if (images_in_ == 0)
+  const uint64_t images_in = published_ + dropped_.count();
+  if (images_in == 0)
   {
     if (pub_.getNumSubscribers() == 0)
       stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "idle: nothing subscribes to " + pub_.getTopic());
@@ -217,7 +218,7 @@ void PreprocessorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& 
   {
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "preprocessing");
   }
-  stat.add("images in", images_in_);
+  stat.add("images in", images_in);
   stat.add("images published", published_);
   dropped_.addTo(stat, "image");
   stat.add("32FC1 images clipped to [0, 1]", clipped_);
@@ -239,7 +240,6 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     NODELET_INFO("Preprocessing parameters now %s", params.serialize().c_str());
   }
 
-  ++images_in_;
   PixelFormat format;
   std::string problem;
   const ImageProblem kind = imageMessageProblem(*msg, &format, &problem);
@@ -258,11 +258,11 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   out->is_bigendian = 0;
   out->data.resize(static_cast<size_t>(out->step) * out->height);
   cv::Mat output(params.output_height, params.output_width, CV_8UC1, &out->data[0], out->step);
+  char image[160];  // for the messages
+  std::snprintf(image, sizeof(image), "a %ux%u '%s' image", msg->width, msg->height, msg->encoding.c_str());
   try
   {
     const cv_bridge::CvImageConstPtr input = cv_bridge::toCvShare(msg);
-    char image[160];
-    std::snprintf(image, sizeof(image), "a %ux%u '%s' image", msg->width, msg->height, msg->encoding.c_str());
     std::string warning;
     if (format == PixelFormat::kMono32F && floatOutsideUnitRange(input->image, &warning))
     {
@@ -286,9 +286,7 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   }
   catch (const std::exception& e)  // PreprocessingError, cv_bridge::Exception, cv::Exception
   {
-    char image[160];
-    std::snprintf(image, sizeof(image), "%ux%u '%s' image: ", msg->width, msg->height, msg->encoding.c_str());
-    dropImage(ImageProblem::kNone, image + std::string(e.what()));
+    dropImage(ImageProblem::kNone, image + (": " + std::string(e.what())));
     return;
   }
   if (output.data != &out->data[0])
