@@ -354,11 +354,15 @@ int Localizer::keyframeThroughRun(int dtw_keyframe)
   }
   // Entering the run: the path's speed before this frame (the robot most likely keeps it: a train stands
   // at a station as long as the teach train did), from the keyframe after the last answer when that came
-  // from before the run.
+  // from before the run. Back into the run from after it (the answer had left the station while the robot
+  // still stood in it): its last keyframe, the nearest to the last answer; the DTW's own pick among the
+  // copies is arbitrary, and was the farthest back the match window allowed
+  // (Localizer.StaysAtTheEndOfAStationWhileTheRobotStillStandsThere).
   run_velocity_ = trackSpeed();
-  run_position_ = last_match_ >= 0 && last_match_ < first ?
-                      std::min(static_cast<double>(last), std::max<double>(first, last_match_ + run_velocity_)) :
-                      dtw_keyframe;
+  if (last_match_ >= 0 && last_match_ < first)
+    run_position_ = std::min(static_cast<double>(last), std::max<double>(first, last_match_ + run_velocity_));
+  else
+    run_position_ = last_match_ > last ? last : dtw_keyframe;
   return static_cast<int>(std::lround(run_position_));
 }
 
