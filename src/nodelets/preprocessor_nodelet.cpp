@@ -136,7 +136,7 @@ void PreprocessorNodelet::onInit()
   updater_->setHardwareID("none");
   updater_->add("preprocessing", this, &PreprocessorNodelet::diagnose);
   diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
-  NODELET_INFO("Preprocessing %s -> %s (%s); parameters on %s", nh.resolveName("image").c_str(),
+  NODELET_INFO("Preprocessing %s -> %s (%s); parameters on %s", image_topic_.c_str(),
                nh.resolveName("image_preprocessed").c_str(), initial.serialize().c_str(), params_topic.c_str());
 }
 
@@ -258,8 +258,12 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   out->is_bigendian = 0;
   out->data.resize(static_cast<size_t>(out->step) * out->height);
   cv::Mat output(params.output_height, params.output_width, CV_8UC1, &out->data[0], out->step);
-  char image[160];  // for the messages
-  std::snprintf(image, sizeof(image), "a %ux%u '%s' image", msg->width, msg->height, msg->encoding.c_str());
+  // For the messages only: formatted when one is needed, not for every image.
+  const auto image = [&msg]() {
+    char text[160];
+    std::snprintf(text, sizeof(text), "a %ux%u '%s' image", msg->width, msg->height, msg->encoding.c_str());
+    return std::string(text);
+  };
   try
   {
     const cv_bridge::CvImageConstPtr input = cv_bridge::toCvShare(msg);
@@ -267,13 +271,13 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     if (format == PixelFormat::kMono32F && floatOutsideUnitRange(input->image, &warning))
     {
       ++clipped_;
-      last_warning_ = image + (": " + warning + " (scale the images to [0, 1])");
+      last_warning_ = image() + ": " + warning + " (scale the images to [0, 1])";
       NODELET_WARN_THROTTLE(10.0, "Using %s", last_warning_.c_str());
     }
     else if (inputSmallerThanOutput(input->image.cols, input->image.rows, params, &warning))
     {
       ++enlarged_;
-      last_warning_ = image + (" " + warning);
+      last_warning_ = image() + " " + warning;
       // Said once for each input and output size (a camera mode), and kept in the diagnostics.
       if (enlarged_said_.size() < 64 && enlarged_said_.insert(last_warning_).second)
         NODELET_WARN("Using %s", last_warning_.c_str());
@@ -286,7 +290,7 @@ void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   }
   catch (const std::exception& e)  // PreprocessingError, cv_bridge::Exception, cv::Exception
   {
-    dropImage(ImageProblem::kNone, image + (": " + std::string(e.what())));
+    dropImage(ImageProblem::kNone, image() + ": " + e.what());
     return;
   }
   if (output.data != &out->data[0])
