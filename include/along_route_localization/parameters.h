@@ -24,12 +24,27 @@ std::vector<std::string> preprocessingParameterNames();
 /// ... and those of LocalizerParams (steps 2-5: the localizer's).
 std::vector<std::string> localizerParameterNames();
 
-/// Reads a flat YAML mapping ("name: value" per line, '#' comments, optional single top-level section
-/// headers such as "localizer:" whose indented entries are read the same way) and applies every
-/// entry. The entries of a "map_recorder:" section are skipped, so the launch files' params_file (sections
-/// preprocessor:, map_recorder:, localizer:) can be given as it is. Returns false with *error naming the
-/// file and line on the first problem, also for a name given twice. Booleans: true/false, yes/no, on/off
-/// (as YAML 1.1 and rosparam read them), 1/0.
+/// One "name: value" entry of a parameter file and the line it is on (for error messages).
+struct ParameterEntry
+{
+  std::string name, value;
+  int line = 0;
+};
+
+/// Reads the entries of a flat YAML mapping ("name: value" per line, '#' comments, optional single
+/// top-level section headers such as "localizer:" whose indented entries are read the same way) without
+/// applying them. The entries of a "map_recorder:" section are skipped, so the launch files' params_file
+/// (sections preprocessor:, map_recorder:, localizer:) can be given as it is. Returns false with *error
+/// naming the file and line when the file cannot be read or a line is not "name: value".
+bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* entries, std::string* error);
+
+/// Applies the entries read from `path` in file order. Returns false with *error naming the file and line
+/// on the first unknown name, unparsable value, or name given twice. Booleans: true/false, yes/no,
+/// on/off (as YAML 1.1 and rosparam read them), 1/0.
+bool applyParameterEntries(const std::string& path, const std::vector<ParameterEntry>& entries,
+                           PreprocessingParams* preprocessing, LocalizerParams* localizer, std::string* error);
+
+/// readParameterFile, then applyParameterEntries.
 bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,
                        std::string* error);
 

@@ -225,9 +225,9 @@ std::vector<std::string> parameterNames()
   return names;
 }
 
-bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,
-                       std::string* error)
+bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* entries, std::string* error)
 {
+  entries->clear();
   std::ifstream in(path);
   if (!in)
   {
@@ -237,7 +237,6 @@ bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessi
   std::string line;
   int number = 0;
   bool recorder_section = false;
-  std::map<std::string, int> set_on_line;  // a name given twice would otherwise silently take the last value
   while (std::getline(in, line))
   {
     ++number;
@@ -263,23 +262,41 @@ bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessi
     }
     if (!indented)
       recorder_section = false;
-    if (recorder_section)
-      continue;
+    if (!recorder_section)
+      entries->push_back({ name, value, number });
+  }
+  return true;
+}
+
+bool applyParameterEntries(const std::string& path, const std::vector<ParameterEntry>& entries,
+                           PreprocessingParams* preprocessing, LocalizerParams* localizer, std::string* error)
+{
+  std::map<std::string, int> set_on_line;  // a name given twice would otherwise silently take the last value
+  for (const ParameterEntry& entry : entries)
+  {
     std::string why;
-    if (!applyParameter(name, value, preprocessing, localizer, &why))
+    if (!applyParameter(entry.name, entry.value, preprocessing, localizer, &why))
     {
-      *error = path + ":" + std::to_string(number) + ": " + why;
+      *error = path + ":" + std::to_string(entry.line) + ": " + why;
       return false;
     }
-    const auto earlier = set_on_line.emplace(name, number);
+    const auto earlier = set_on_line.emplace(entry.name, entry.line);
     if (!earlier.second)
     {
-      *error = path + ":" + std::to_string(number) + ": '" + name + "' is already set on line " +
+      *error = path + ":" + std::to_string(entry.line) + ": '" + entry.name + "' is already set on line " +
                std::to_string(earlier.first->second) + "; give each parameter once";
       return false;
     }
   }
   return true;
+}
+
+bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,
+                       std::string* error)
+{
+  std::vector<ParameterEntry> entries;
+  return readParameterFile(path, &entries, error) &&
+         applyParameterEntries(path, entries, preprocessing, localizer, error);
 }
 
 }  // namespace along_route_localization

@@ -162,7 +162,10 @@ int main(int argc, char** argv)
   alr::PreprocessingParams preprocessing;
   alr::LocalizerParams localizer_params;
   std::string error;
-  if (!params_path.empty() && !alr::loadParameterFile(params_path, &preprocessing, &localizer_params, &error))
+  std::vector<alr::ParameterEntry> file_entries;  // read once: applied again below over a map file's parameters
+  if (!params_path.empty() &&
+      !(alr::readParameterFile(params_path, &file_entries, &error) &&
+        alr::applyParameterEntries(params_path, file_entries, &preprocessing, &localizer_params, &error)))
   {
     std::cerr << "localize_offline: " << error << "\n";
     return 2;
@@ -230,8 +233,7 @@ int main(int argc, char** argv)
     // preprocessing name among them, that leaves the map's parameters as they are).
     alr::PreprocessingParams given = preprocessing;
     alr::LocalizerParams unused;
-    if (!params_path.empty())
-      alr::loadParameterFile(params_path, &given, &unused, &error);
+    alr::applyParameterEntries(params_path, file_entries, &given, &unused, &error);
     for (const auto& kv : overrides)
       alr::applyParameter(kv.first, kv.second, &given, &unused, &error);
     if (!(given == preprocessing))

@@ -4,6 +4,7 @@
 #include <fstream>
 #include <set>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -66,6 +67,41 @@ TEST_F(ParameterFile, ANameGivenTwiceIsAnErrorNamingBothLines)
   EXPECT_DOUBLE_EQ(0.25, preprocessing_.sky_fraction);
   // The recorder's section is skipped, so its names do not count.
   EXPECT_EQ("", load("map_recorder:\n  every_nth: 3\n  every_nth: 4\nmax_step: 2\n"));
+}
+
+TEST_F(ParameterFile, EntriesAreReadWithTheirLinesAndAppliedLater)
+{
+  // The launch files' params_file as it is: sections, comments, the recorder's section skipped.
+  std::ofstream(path_) << "# tuned on the yard\npreprocessor:\n  sky_fraction: 0.25  # trees\nmap_recorder:\n"
+                          "  every_nth: 3\nlocalizer:\n  max_step: 3\nbogus_name: 1\n";
+  std::vector<arl::ParameterEntry> entries;
+  std::string error;
+  ASSERT_TRUE(arl::readParameterFile(path_, &entries, &error)) << error;
+  ASSERT_EQ(3u, entries.size());
+  EXPECT_EQ("sky_fraction", entries[0].name);
+  EXPECT_EQ("0.25", entries[0].value);
+  EXPECT_EQ(3, entries[0].line);
+  EXPECT_EQ("max_step", entries[1].name);
+  EXPECT_EQ(7, entries[1].line);
+  EXPECT_EQ("bogus_name", entries[2].name);
+  EXPECT_EQ(8, entries[2].line);
+  // Reading does not judge names; applying does, naming the line, after applying the entries before it.
+  arl::PreprocessingParams preprocessing;
+  arl::LocalizerParams localizer;
+  EXPECT_FALSE(arl::applyParameterEntries(path_, entries, &preprocessing, &localizer, &error));
+  EXPECT_NE(std::string::npos, error.find(path_ + ":8:")) << error;
+  EXPECT_EQ(3, localizer.dtw.max_step);
+  // The same entries apply to other parameters without reading the file again.
+  std::remove(path_.c_str());
+  entries.pop_back();
+  arl::PreprocessingParams other;
+  other.sky_fraction = 0.5;
+  ASSERT_TRUE(arl::applyParameterEntries(path_, entries, &other, &localizer, &error)) << error;
+  EXPECT_DOUBLE_EQ(0.25, other.sky_fraction);
+  // A line that is not "name: value" is a read error.
+  std::ofstream(path_) << "max_step 3\n";
+  EXPECT_FALSE(arl::readParameterFile(path_, &entries, &error));
+  EXPECT_NE(std::string::npos, error.find(path_ + ":1: expected 'name: value'")) << error;
 }
 
 TEST(ParameterNames, EachNameSetsAFieldOfItsOwnGroupOnly)

@@ -387,6 +387,17 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertFails(self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output,
                                          '--set', 'normalization_strength=0.1'),
                          'other preprocessing parameters', 'normalization_strength: 0.2 vs 0.1')
+        # The same through --params (the file's preprocessor: section is compared as --set is).
+        params = os.path.join(self.tmp, 'strength.yaml')
+        with open(params, 'w') as f:
+            f.write('preprocessor:\n  normalization_strength: 0.2\nlocalizer:\n  max_step: 2\n')
+        result = self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output, '--params', params)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        with open(params, 'w') as f:
+            f.write('preprocessor:\n  normalization_strength: 0.1\n')
+        self.assertFails(self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output,
+                                         '--params', params),
+                         'other preprocessing parameters', 'normalization_strength: 0.2 vs 0.1')
         # Only names given are compared: sky_fraction 0 agrees with the map; the strength is not given.
         result = self.run_runner('--map', map_file, '--query', self.map_dir, '--output', output,
                                  '--set', 'sky_fraction=0')
