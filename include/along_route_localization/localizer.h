@@ -189,6 +189,29 @@ struct LocalizationResult
   FrameGap gap = FrameGap::kNone;  ///< what was done with them
 };
 
+/// Running counts of the gaps the localizer reported (LocalizationResult::missed_frames and gap), as the
+/// localizer nodelet's diagnostics and localize_offline's summary give them.
+struct FrameGapCounts
+{
+  uint64_t gaps = 0;            ///< frames that came after a gap
+  uint64_t missed_frames = 0;   ///< frames missed in the gaps that did not restart the search
+  uint64_t searched_again = 0;  ///< gaps that restarted the search (FrameGap::kSearchedAgain)
+  uint64_t stood_still = 0;     ///< gaps with the same view on both sides (FrameGap::kStoodStill)
+
+  void add(const LocalizationResult& result)
+  {
+    if (result.missed_frames <= 0)
+      return;
+    ++gaps;
+    if (result.gap == FrameGap::kSearchedAgain)
+      ++searched_again;
+    else
+      missed_frames += static_cast<uint64_t>(result.missed_frames);
+    if (result.gap == FrameGap::kStoodStill)
+      ++stood_still;
+  }
+};
+
 /// Homing angle from an image shift: a scene displaced d px to the right means the camera yawed left,
 /// so the correction is a right turn: angle = -atan(d / f), with f = (width / 2) / tan(hfov / 2) px.
 double homingAngleFromShift(double shift_px, int image_width, double horizontal_fov_rad);
@@ -276,6 +299,8 @@ private:
   /// keyframes (the teach camera stood still, or saw nothing) the DTW cannot tell them apart, so the
   /// answer moves through the run at the speed the path had when it entered (pathSpeed, run_dead_reckoning).
   int keyframeThroughRun(int dtw_keyframe);
+  /// Keyframe k lies in a run of more than one near-identical keyframe (a station, or a featureless stretch).
+  bool inRunOfCopies(int k) const { return run_first_[k] != run_last_[k]; }
   /// The motion prior of the match while tracking: the robot is predicted at the last match plus the
   /// speed of the last path (pathSpeed), or at the last match itself when the query repeats the last
   /// view (the camera stood still) outside a run of identical keyframes; then only ends ahead of it pay

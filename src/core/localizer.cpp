@@ -380,7 +380,7 @@ EndPrior Localizer::motionPrior(bool repeated_query) const
   if (!repeated_query && tracked_frames_ < params_.ring_buffer_rows)
     return prior;
   prior.weight = params_.motion_prior_weight;
-  const bool stood_still = repeated_query && run_first_[last_match_] == run_last_[last_match_];
+  const bool stood_still = repeated_query && !inRunOfCopies(last_match_);
   prior.center = last_match_ + (stood_still ? 0.0 : trackSpeed());
   prior.cap = repeated_query ? std::numeric_limits<float>::infinity() : params_.motion_prior_cap;
   prior.ahead_only = stood_still;
@@ -479,7 +479,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   // robot stood still through the gap (a dark view says nothing: the gap is filled in). Not inside a run of
   // identical keyframes (a station where the teach robot stood too): there the robot goes on through the
   // run at the speed it came, as frame by frame (motionPrior, keyframeThroughRun).
-  const bool in_run = last_match_ >= 0 && run_first_[last_match_] != run_last_[last_match_];
+  const bool in_run = last_match_ >= 0 && inRunOfCopies(last_match_);
   const bool same_view = tick.missed > 0 && !in_run && repeatsLastView(query) &&
                          textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) >=
                              min_texture_energy_;

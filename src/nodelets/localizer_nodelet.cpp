@@ -105,7 +105,8 @@ private:
   bool unchecked_warned_ = false;
   ros::Time last_stamp_;
   LocalizationResult last_result_;
-  uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0, gaps_ = 0, long_gaps_ = 0, missed_frames_ = 0;
+  uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0;
+  FrameGapCounts gaps_;
   DroppedFrames dropped_;
   double time_sum_ms_ = 0.0, time_max_ms_ = 0.0, last_time_ms_ = 0.0;
   const void* last_input_data_ = nullptr;  // for checking the zero-copy hand-over
@@ -535,8 +536,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   if (result.missed_frames > 0)
   {
     const double gap = (msg->header.stamp - last_stamp_).toSec();
-    const bool restarted = result.gap == FrameGap::kSearchedAgain;
-    if (restarted)
+    if (result.gap == FrameGap::kSearchedAgain)
       NODELET_WARN("A gap of %.3f s in the image stamps (%.3f s -> %.3f s), longer than the sequence window: "
                    "searching the whole map again",
                    gap, last_stamp_.toSec(), msg->header.stamp.toSec());
@@ -547,11 +547,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
                             result.gap == FrameGap::kNotFilledIn ? "not filled in (fill_frame_gaps is off)" :
                                                                    "the view after it is the one before it: the "
                                                                    "robot stood still, nothing filled in");
-    if (restarted)
-      ++long_gaps_;
-    else
-      missed_frames_ += static_cast<uint64_t>(result.missed_frames);
-    ++gaps_;
+    gaps_.add(result);
   }
   last_stamp_ = msg->header.stamp;
 
@@ -644,9 +640,9 @@ void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("frames processed", frames_);
   dropped_.addTo(stat, "frame");
   stat.add("resets (time went backwards)", resets_);
-  stat.add("gaps in the image stamps", gaps_);
-  stat.add("frames missed in gaps that did not restart the search", missed_frames_);
-  stat.add("gaps that restarted the search", long_gaps_);
+  stat.add("gaps in the image stamps", gaps_.gaps);
+  stat.add("frames missed in gaps that did not restart the search", gaps_.missed_frames);
+  stat.add("gaps that restarted the search", gaps_.searched_again);
   stat.add("status", toString(last_result_.status));
   stat.add("keyframe", last_result_.keyframe);
   stat.add("confidence", last_result_.confidence);

@@ -285,7 +285,8 @@ int main(int argc, char** argv)
   };
   out << "query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";
   const auto localize_start = Clock::now();
-  int64_t gaps = 0, missed = 0, long_gaps = 0, same_view = 0, restarts = 0;
+  alr::FrameGapCounts gaps;
+  int64_t restarts = 0;
   try
   {
     alr::Localizer localizer(map, localizer_params);
@@ -296,16 +297,7 @@ int main(int argc, char** argv)
       // As the localizer nodelet: a bag's stamps tell when time went back and when frames were missed.
       const alr::LocalizationResult r = localizer.process(queries[q], query_stamps[q]);
       restarts += r.time_went_back ? 1 : 0;
-      if (r.missed_frames > 0)
-      {
-        ++gaps;
-        if (r.gap == alr::FrameGap::kSearchedAgain)
-          ++long_gaps;
-        else
-          missed += r.missed_frames;
-        if (r.gap == alr::FrameGap::kStoodStill)
-          ++same_view;
-      }
+      gaps.add(r);
       std::snprintf(line, sizeof(line), "%zu,%d,%.6f,%.4f,%.6f,%s\n", q, r.keyframe, r.confidence, r.shift_px,
                     r.homing_angle_rad, alr::toString(r.status).c_str());
       out << line;
@@ -323,12 +315,15 @@ int main(int argc, char** argv)
   if (staging != output_path && std::rename(staging.c_str(), output_path.c_str()) != 0)
     return fail("cannot move '" + staging + "' to '" + output_path + "': " + std::strerror(errno));
   std::string stamps;
-  if (gaps > 0)
-    stamps += ", " + std::to_string(gaps) + " gaps in the stamps (" + std::to_string(missed) + " frames missed" +
-              (localizer_params.fill_frame_gaps ? "" : ", not filled in: fill_frame_gaps is off") +
-              (long_gaps > 0 ? "; " + std::to_string(long_gaps) + " longer than the window, searched again" : "") +
-              (same_view > 0 ? "; " + std::to_string(same_view) + " with the same view before and after, not filled in" :
-                               "") +
+  if (gaps.gaps > 0)
+    stamps += ", " + std::to_string(gaps.gaps) + " gaps in the stamps (" + std::to_string(gaps.missed_frames) +
+              " frames missed" + (localizer_params.fill_frame_gaps ? "" : ", not filled in: fill_frame_gaps is off") +
+              (gaps.searched_again > 0 ?
+                   "; " + std::to_string(gaps.searched_again) + " longer than the window, searched again" :
+                   "") +
+              (gaps.stood_still > 0 ?
+                   "; " + std::to_string(gaps.stood_still) + " with the same view before and after, not filled in" :
+                   "") +
               ")";
   if (restarts > 0)
     stamps += ", " + std::to_string(restarts) + " restarts (time went back)";
