@@ -1,0 +1,125 @@
+"""scripts/run_evaluation: the seed list, the spread over seeds and its goal lines; one short run on the
+Nordland frames with a second seed (skipped without the data or the built localize_offline)."""
+
+import contextlib
+import csv
+import io
+import json
+import os
+import shutil
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # finds scripts_under_test
+from scripts_under_test import built_executable, load
+
+evaluation = load("run_evaluation")
+
+
+def fake_metrics(within_one, recall=0.9):
+    return {"within": {"0": within_one, "1": within_one, "2": within_one, "5": within_one},
+            "recall_at_100_precision": recall, "average_precision": recall, "queries": 10}
+
+
+class SeedListTest(unittest.TestCase):
+    def test_ranges_and_lists(self):
+        self.assertEqual(evaluation.parse_seeds("2-12"), list(range(2, 13)))
+        self.assertEqual(evaluation.parse_seeds("2,5,7-9"), [2, 5, 7, 8, 9])
+        self.assertEqual(evaluation.parse_seeds(" 5, 3-4,4 "), [3, 4, 5])  # sorted, each once
+        self.assertEqual(evaluation.parse_seeds("none"), [])
+        self.assertEqual(evaluation.parse_seeds(""), [])
+
+    def test_bad_lists_are_refused(self):
+        for text in ("3-1", "a", "2-", "1,,2", "-3"):
+            with self.assertRaises(ValueError, msg=text):
+                evaluation.parse_seeds(text)
+
+    def test_label_joins_consecutive_seeds(self):
+        self.assertEqual(evaluation.seed_label([1, 2, 3, 5, 7, 8]), "1-3, 5, 7-8")
+        self.assertEqual(evaluation.seed_label([4]), "4")
+
+    def test_command_line(self):
+        args = evaluation.parse_args(["--seed", "3", "--extra-seeds", "1-4"])
+        self.assertEqual(args.extra_seeds, [1, 2, 4])  # --seed is the main run's, not run twice
+        self.assertEqual(evaluation.parse_args([]).extra_seeds, list(range(2, 13)))
+        self.assertEqual(evaluation.parse_args(["--extra-seeds", "none"]).extra_seeds, [])
+        with contextlib.redirect_stderr(io.StringIO()) as err, self.assertRaises(SystemExit):
+            evaluation.parse_args(["--extra-seeds", "2-x"])
+        self.assertIn("--extra-seeds", err.getvalue())
+
+
+class SpreadTest(unittest.TestCase):
+    def test_spread(self):
+        spread = evaluation.seed_spread({3: 0.88, 1: 0.90, 2: 0.85}, 0.88)
+        self.assertEqual(spread["seeds"], [1, 2, 3])
+        self.assertEqual(spread["values"], [0.90, 0.85, 0.88])
+        self.assertAlmostEqual(spread["mean"], 2.63 / 3)
+        self.assertEqual((spread["min"], spread["max"]), (0.85, 0.90))
+        self.assertEqual(spread["at_goal"], 2)  # 0.88 counts as at the goal
+        self.assertIsNone(evaluation.seed_spread({1: 0.5})["at_goal"])
+
+    def test_goal_on_the_mean_over_seeds(self):
+        # seed 1 meets the stop-and-go goal (0.88), the mean of the three does not: (0.90 + 0.86 + 0.86) / 3
+        runs = [("stop_and_go", "dtw", fake_metrics(0.90), {"wall_s": 1.0})]
+        seed_runs = {("stop_and_go", "dtw"): {1: 0.90, 2: 0.86, 3: 0.86}}
+        lines = evaluation.goal_lines(runs, seed_runs)
+        self.assertEqual(lines[0], "- stop_and_go: within one frame 0.900, goal >= 0.88: met")
+        self.assertEqual(lines[1], "- stop_and_go over seeds 1-3: within one frame mean 0.873 (0.860-0.900), "
+                                   "goal >= 0.88: NOT met; 1 of 3 seeds at or above it")
+        self.assertEqual(len(evaluation.goal_lines(runs)), 1)  # one seed: no spread line
+
+    def test_table_row(self):
+        table = evaluation.seed_table({("heading_offset", "dtw"): {1: 0.97, 2: 0.95},
+                                       ("heading_offset", "seqslam"): {1: 0.86, 2: 0.84}})
+        rows = table.splitlines()
+        self.assertEqual(rows[2], "| heading_offset | dtw | 1-2 | 0.970 0.950 | 0.960 | 0.950 | 0.970 | 2 of 2 |")
+        self.assertEqual(rows[3], "| heading_offset | seqslam | 1-2 | 0.860 0.840 | 0.850 | 0.840 | 0.860 | - |")
+
+
+class NordlandRunTest(unittest.TestCase):
+    """200 frames of the real data, stop-and-go with seeds 1 and 2: the spread table's value for seed 2 is
+    the share of its queries within one frame, counted here from the files."""
+
+    def setUp(self):
+        self.data = evaluation.default_data_dir()
+        if not os.path.isdir(os.path.join(self.data, "summer")):
+            self.skipTest("Nordland data not found at %s" % self.data)
+        self.binary = built_executable("localize_offline")
+        if not self.binary:
+            self.skipTest("localize_offline not built (source the catkin workspace)")
+        self.out = tempfile.mkdtemp(prefix="test_run_evaluation_")
+
+    def tearDown(self):
+        shutil.rmtree(self.out)
+
+    def test_second_seed(self):
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
+            code = evaluation.main(["--output", self.out, "--data", self.data, "--scenarios", "stop_and_go",
+                                    "--methods", "dtw", "--first", "300", "--count", "200", "--extra-seeds", "2",
+                                    "--localize-offline", self.binary])
+        self.assertEqual(code, 0, err.getvalue())
+        share = {}
+        for seed, scenarios, runs in ((1, "scenarios", "runs"), (2, "scenarios/seed2", "runs/seed2")):
+            with open(os.path.join(self.out, scenarios, "stop_and_go", "ground_truth.csv")) as f:
+                truth = [int(row["keyframe"]) for row in csv.DictReader(f)]
+            with open(os.path.join(self.out, runs, "stop_and_go.dtw.csv")) as f:
+                answers = [int(row["keyframe"]) for row in csv.DictReader(f)]
+            self.assertEqual(len(answers), len(truth))
+            share[seed] = sum(1 for a, t in zip(answers, truth) if a >= 0 and abs(a - t) <= 1) / float(len(truth))
+        with open(os.path.join(self.out, "runs", "seed2", "stop_and_go.dtw.json")) as f:
+            self.assertAlmostEqual(json.load(f)["within"]["1"], share[2])
+        with open(os.path.join(self.out, "results.md")) as f:
+            text = f.read()
+        self.assertIn("| stop_and_go | dtw | 1-2 | %.3f %.3f | %.3f |" % (share[1], share[2], (share[1] + share[2]) / 2),
+                      text)
+        self.assertIn("- stop_and_go over seeds 1-2: within one frame mean %.3f" % ((share[1] + share[2]) / 2), text)
+        # the two seeds are two draws of the speed profile
+        truths = []
+        for scenarios in ("scenarios", "scenarios/seed2"):
+            with open(os.path.join(self.out, scenarios, "stop_and_go", "ground_truth.csv")) as f:
+                truths.append(f.read())
+        self.assertNotEqual(truths[0], truths[1])
+
+if __name__ == "__main__":
+    unittest.main()
