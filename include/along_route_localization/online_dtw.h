@@ -112,9 +112,12 @@ public:
   /// global search).
   /// prior: see EndPrior; it only chooses among the ends (SequenceMatch::cost stays the chosen end's
   /// accumulated cost, so a cheaper end elsewhere still lowers the margins).
+  /// path_start >= 0: every path starts at that keyframe in the oldest row (a known start: the robot
+  /// was there on the first frame of the window); ends it cannot reach are infinitely dear. -1: anywhere.
   SequenceMatch match(const CostRingBuffer& buffer, int first_end, int count, int rows,
                       bool backtrack = false, const int* keyframe_run = nullptr, int first_choice = 0,
-                      int last_choice = std::numeric_limits<int>::max(), const EndPrior& prior = EndPrior());
+                      int last_choice = std::numeric_limits<int>::max(), const EndPrior& prior = EndPrior(),
+                      int path_start = -1);
 
   /// Accumulated cost row of the last match() (per end keyframe, divided by rows), for display.
   const std::vector<float>& lastAccumulated() const { return last_row_; }
@@ -125,6 +128,7 @@ private:
   {
     int lo = 0, width = 0, rows = 0;
     bool backtrack = false;
+    int path_start = -1;  ///< keyframe every path starts at in the oldest row, -1: anywhere
   };
   /// Per column chunk: the rows being accumulated, the centred costs and the column means.
   struct Columns

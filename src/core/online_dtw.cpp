@@ -271,6 +271,12 @@ void OnlineDtw::accumulateColumns(const CostRingBuffer& buffer, const Window& wi
   // The oldest row: a path starts in state M.
   float* prev_move = scratch.prev_move.data();
   centredCosts(buffer, window.rows - 1, lo, width, missing, mean, prev_move);
+  if (window.path_start >= 0)
+  {
+    for (int j = 0; j < width; ++j)
+      if (lo + j != window.path_start)
+        prev_move[j] = std::numeric_limits<float>::infinity();
+  }
   std::fill(scratch.prev_stop.begin(), scratch.prev_stop.end(), std::numeric_limits<float>::infinity());
   std::fill(scratch.prev_fast.begin(), scratch.prev_fast.end(), std::numeric_limits<float>::infinity());
   float* costs = scratch.costs.data();
@@ -300,7 +306,8 @@ void OnlineDtw::accumulateColumns(const CostRingBuffer& buffer, const Window& wi
 }
 
 SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int count, int rows, bool backtrack,
-                               const int* keyframe_run, int first_choice, int last_choice, const EndPrior& prior)
+                               const int* keyframe_run, int first_choice, int last_choice, const EndPrior& prior,
+                               int path_start)
 {
   SequenceMatch result;
   Window window;
@@ -312,6 +319,7 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   window.lo = std::max(0, first_end - (num_rows - 1) * params_.max_step);
   window.width = first_end + count - window.lo;
   window.backtrack = backtrack;
+  window.path_start = path_start;
   const int width = window.width;
   final_move_.resize(width);
   final_stop_.resize(width);

@@ -1,5 +1,6 @@
 // Step 4 (online_dtw.h): accumulated cost, backtracked path and the match on hand-made cost matrices.
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <vector>
 
@@ -166,6 +167,37 @@ TEST(OnlineDtw, AccumulatedRowMatchesHandRecursion)
   ASSERT_EQ(10u, accumulated.size());
   for (int i = 0; i < 10; ++i)
     EXPECT_NEAR(expected[i], accumulated[i], 1e-5) << "keyframe " << i;
+}
+
+TEST(OnlineDtw, APathStartFixesWhereEveryPathBegins)
+{
+  // twoPaths: A = 0 1 2 3 (zeros), B = 17 18 19 20 (zeros, 0.5 in the newest row). Free to start
+  // anywhere, A wins at cost 0. Every path starting at keyframe 17: B wins, 0.5 / 4 rows; ends left of
+  // 17 cannot be reached (paths only go forward) and neither can those past 17 + 3 rows * s = 23.
+  // End 23 takes three (1,2) steps over ones: 3 + 0.05 * 3 = 3.15, / 4.
+  arl::CostRingBuffer buffer(4, 30);
+  appendRows(buffer, twoPaths());
+  arl::OnlineDtw dtw(handParams(2));
+  arl::SequenceMatch match = dtw.match(buffer, 0, 30, 4, true);
+  EXPECT_EQ(3, match.keyframe);
+  EXPECT_NEAR(0.0f, match.cost, 1e-6);
+
+  match = dtw.match(buffer, 0, 30, 4, true, nullptr, 0, std::numeric_limits<int>::max(), arl::EndPrior(), 17);
+  EXPECT_EQ(20, match.keyframe);
+  EXPECT_NEAR(0.5f / 4, match.cost, 1e-6);
+  EXPECT_EQ((std::vector<int>{ 17, 18, 19, 20 }), match.path);
+  const std::vector<float>& accumulated = dtw.lastAccumulated();
+  for (int i = 0; i < 30; ++i)
+    EXPECT_EQ(i >= 17 && i <= 23, std::isfinite(accumulated[i])) << "keyframe " << i;
+  EXPECT_NEAR(3.15f / 4, accumulated[23], 1e-5);
+  // The competition is among the paths from 17 too: the best end farther than 2 from 20 is 23.
+  ASSERT_TRUE(match.has_second);
+  EXPECT_NEAR(3.15f / 4, match.second_cost, 1e-5);
+
+  // Starting where A starts changes nothing for A.
+  match = dtw.match(buffer, 0, 30, 4, true, nullptr, 0, std::numeric_limits<int>::max(), arl::EndPrior(), 0);
+  EXPECT_EQ(3, match.keyframe);
+  EXPECT_NEAR(0.0f, match.cost, 1e-6);
 }
 
 TEST(OnlineDtw, SecondCostRespectsExclusionRadius)
