@@ -137,6 +137,13 @@ struct LocalizerParams
   /// only its band. 0 = start from an empty window. At most K - 1 are used. That first frame computes
   /// their whole-map rows too: 6.5x-7.8x the time of a global frame (README, Performance).
   int relocalization_rows = 8;
+  /// Where the robot starts, on the first frame after construction or reset() (a new map, time going
+  /// back in a looping bag). >= 0: at this keyframe (teach and repeat: the repeat starts where the teach
+  /// did), tracked from the first frame, every path starting there while that frame is in the window;
+  /// a global search over the same rows still runs, and takes over when it confirms another place
+  /// (startRefuted: a robot started mid-route). -1: unknown, a global search (min_init_frames,
+  /// init_confirm_frames) before any tracking. Must be below the map's size.
+  int start_keyframe = 0;
   int min_init_frames = 5;            ///< frames before the first global answer
   /// Consecutive informative frames whose global answer is confident and advances 0..max_step keyframes
   /// per frame before tracking starts (GlobalConfirmation). Confident here: the confidence in the place
@@ -287,6 +294,17 @@ private:
   /// The query shows the view of the last one that entered the ring buffer (stationary_ratio): the
   /// camera stood still. False for nullptr.
   bool repeatsLastView(const uint8_t* query) const;
+  /// Status after construction or reset(): tracking from start_keyframe, or initializing.
+  void start();
+  /// While the frame of a known start (start_keyframe) is in the window: the global search over the same
+  /// rows (*elsewhere, no start) confirmed a place other than the track's (`track`): the robot did not
+  /// start where it was told.
+  bool startRefuted(const SequenceMatch& track, bool informative, SequenceMatch* elsewhere);
+  /// The share of a full window's evidence a match has seen: its distinct views / K, at most 1.
+  double evidenceShare(const SequenceMatch& match) const;
+  /// 1 - exp(-margin * evidence / confidence_scale), the margin being over the best path ending at
+  /// another keyframe (other_place false) or at another place (true, SequenceMatch::second_place_cost).
+  double matchConfidence(const SequenceMatch& match, bool other_place, double evidence) const;
   /// Rows the sequence match looks at: K (ring_buffer_rows), or the baseline's sequence length.
   int windowRows() const;
   /// Whether skipFrames(count) starts the search over: the frame after the gap would find no row from
@@ -350,6 +368,9 @@ private:
 
   LocalizationStatus status_ = LocalizationStatus::kInitializing;
   int last_match_ = -1;
+  bool at_start_ = false;                // tracking from start_keyframe, no frame answered yet
+  int start_match_ = -1;                 // the start keyframe of a known start
+  int rows_since_start_ = -1;            // rows appended since a known start (start_keyframe); -1: none
   int tracked_frames_ = 0;               // frames answered since tracking last started
   double cruise_speed_ = 1.0;            // keyframes per frame: the mean of cruise_samples_ samples
   int cruise_samples_ = 1;               // the nominal speed counts as the first

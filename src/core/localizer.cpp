@@ -101,6 +101,9 @@ std::string LocalizerParams::validate() const
       << seqslam.min_velocity << " to " << seqslam.max_velocity << " by " << seqslam.velocity_step;
   else if (seqslam.exclusion_radius < 0)
     e << "seqslam exclusion_radius must be >= 0, got " << seqslam.exclusion_radius;
+  else if (start_keyframe < -1)
+    e << "start_keyframe must be a keyframe index (>= 0) or -1 (unknown: search the whole map), got "
+      << start_keyframe;
   else if (min_init_frames < 1 || min_init_frames > 10000)
     e << "min_init_frames must be in [1, 10000], got " << min_init_frames;
   else if (!(confidence_threshold >= 0.0 && confidence_threshold <= 1.0))
@@ -213,6 +216,21 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
   raw_costs_.resize(n);
   shifts_.resize(n);
   mask_.resize(n);
+  start();
+}
+
+void Localizer::start()
+{
+  status_ = LocalizationStatus::kInitializing;
+  last_match_ = -1;
+  at_start_ = false;
+  rows_since_start_ = -1;
+  if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
+    return;
+  status_ = LocalizationStatus::kTracking;
+  last_match_ = start_match_ = params_.start_keyframe;
+  at_start_ = true;
+  rows_since_start_ = 0;
 }
 
 void Localizer::setParams(const LocalizerParams& params)
@@ -220,6 +238,9 @@ void Localizer::setParams(const LocalizerParams& params)
   std::string invalid = params.validate();
   if (invalid.empty() && 2 * params.max_shift_px >= map_->width())
     invalid = "max_shift_px must be below half the image width (" + std::to_string(map_->width()) + " px)";
+  if (invalid.empty() && params.start_keyframe >= static_cast<int>(map_->size()))
+    invalid = "start_keyframe must be below the map's " + std::to_string(map_->size()) + " keyframes, got " +
+              std::to_string(params.start_keyframe) + " (-1: unknown, search the whole map)";
   if (!invalid.empty())
     throw std::invalid_argument("invalid localizer parameters: " + invalid);
   const bool comparators_changed = !difference_ || params.max_shift_px != params_.max_shift_px ||
@@ -336,6 +357,7 @@ void Localizer::reset()
   recent_count_ = recent_next_ = 0;
   relocalize_from_recent_ = false;
   clock_.forgetLastStamp();
+  start();
 }
 
 int Localizer::keyframeThroughRun(int dtw_keyframe)
@@ -528,6 +550,7 @@ void Localizer::skipFrames(int count)
     else if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
       status_ = LocalizationStatus::kLost;
     ring_.clear();
+    rows_since_start_ = -1;
     confirmation_.clear();
     loss_.clear();
     last_path_.clear();
@@ -557,8 +580,13 @@ LocalizationResult Localizer::step(const uint8_t* query)
   const bool tracking = last_match_ >= 0 && (status_ == LocalizationStatus::kTracking ||
                                              status_ == LocalizationStatus::kEndOfRoute);
   const bool global = params_.method == SequenceMethod::kSeqSlam || !tracking;
+  // A known start (start_keyframe) while its frame is still in the window: the track's paths all start
+  // there, and the rows cover the whole map, so that a global search over the same rows can refute the
+  // start (startRefuted) when the robot was not there.
+  const bool checking_start = tracking && rows_since_start_ >= 0 && rows_since_start_ < params_.ring_buffer_rows;
   int first = 0, width = n;
-  const int predicted = std::min(n - 1, last_match_ + 1);  // while tracking: one keyframe per frame
+  // while tracking: one keyframe per frame (the first frame of a known start: the start keyframe)
+  const int predicted = at_start_ ? last_match_ : std::min(n - 1, last_match_ + 1);
   if (!global)
   {
     // The robot moves forward at most max_step keyframes a frame; centre the band one step ahead.
@@ -578,7 +606,12 @@ LocalizationResult Localizer::step(const uint8_t* query)
     }
   }
   relocalize_from_recent_ = false;
-  computeRow(query, query_energy, result.query_informative, repeated_query, global, first, width);
+  if (checking_start)
+    computeRow(query, query_energy, result.query_informative, repeated_query, true, 0, n);
+  else
+    computeRow(query, query_energy, result.query_informative, repeated_query, global, first, width);
+  if (rows_since_start_ >= 0)
+    ++rows_since_start_;
   if (!recent_queries_.empty())
   {
     RecentQuery& recent = recent_queries_[recent_next_];
@@ -624,8 +657,10 @@ LocalizationResult Localizer::step(const uint8_t* query)
       dtw_.setParams(cruiseSpeedTieBreak(params_.dtw, cruise_speed_));
     // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
     // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
+    // A known start while its frame is the oldest in the window: every path starts there.
+    const int path_start = checking_start ? start_match_ : -1;
     match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, !global, keyframe_run_.data(), first_choice,
-                       last_choice, prior);
+                       last_choice, prior, path_start);
   }
   last_path_ = match.path;
   // A window without evidence (featureless rows only, e.g. a tunnel longer than K frames) ties every
@@ -636,6 +671,23 @@ LocalizationResult Localizer::step(const uint8_t* query)
     match.keyframe = keyframeThroughRun(match.keyframe);
   else
     run_position_ = -1.0;
+  bool left_start = false;  // the global search confirmed another place than the known start's track
+  if (checking_start)
+  {
+    SequenceMatch elsewhere;
+    if (startRefuted(match, result.query_informative, &elsewhere))
+    {
+      match = elsewhere;
+      left_start = true;
+      rows_since_start_ = -1;
+      run_position_ = -1.0;
+      last_path_.clear();
+      tracked_frames_ = 0;
+      loss_.clear();
+    }
+    else if (rows_since_start_ >= params_.ring_buffer_rows)
+      confirmation_.clear();  // the start's frame leaves the window: the track is on its own
+  }
 
   // Confidence: how much cheaper per row the best path is than the best path ending elsewhere. The
   // reported confidence is about the keyframe (a copy of the same view nearby competes) and weighs that
@@ -650,21 +702,12 @@ LocalizationResult Localizer::step(const uint8_t* query)
   // confirmed a wrong place from 5 copies of its first view, and off the route a look-alike was
   // confirmed: Localizer.LeavesTheRouteThenRelocalizes). The loss detection goes by the unweighted
   // confidence: a long track is not lost because the camera stands still.
-  const auto confidenceFrom = [&](bool has_reference, float reference_cost, double evidence) {
-    const float reference = has_reference ? reference_cost : params_.dtw.missing_cost;
-    const double margin = std::max(0.0f, reference - match.cost);
-    return 1.0 - std::exp(-margin * evidence / params_.confidence_scale);
-  };
-  const int window_rows = windowRows();
-  const double evidence =
-      std::min(1.0, static_cast<double>(ring_.distinctViews(match.rows)) / std::max(1, window_rows));
-  result.confidence = confidenceFrom(match.has_second, match.second_cost, evidence);
+  const double evidence = evidenceShare(match);
+  result.confidence = matchConfidence(match, false, evidence);
   result.keyframe = match.keyframe;
 
-  const bool confident =
-      confidenceFrom(match.has_second_place, match.second_place_cost, 1.0) >= params_.confidence_threshold;
-  const bool confirmable = confidenceFrom(match.has_second_place, match.second_place_cost, evidence) >=
-                           params_.confidence_threshold;
+  const bool confident = matchConfidence(match, true, 1.0) >= params_.confidence_threshold;
+  const bool confirmable = matchConfidence(match, true, evidence) >= params_.confidence_threshold;
   if (params_.method == SequenceMethod::kSeqSlam)
   {
     if (ring_.size() >= params_.min_init_frames)
@@ -685,6 +728,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
   {
     status_ = LocalizationStatus::kLost;
     ring_.clear();  // the rows of a lost track cover only its band
+    rows_since_start_ = -1;
     relocalize_from_recent_ = true;
     loss_.clear();
   }
@@ -694,13 +738,14 @@ LocalizationResult Localizer::step(const uint8_t* query)
     // relocalization's jump is not a step; a featureless frame's answer is dead reckoning). Their mean,
     // with the nominal speed as the first sample, until cruise_speed_frames samples; then a moving
     // average over that many.
-    if (tracking && result.query_informative && params_.cruise_speed_frames > 0)
+    if (tracking && !at_start_ && !left_start && result.query_informative && params_.cruise_speed_frames > 0)
     {
       const double step = std::min(std::max(match.keyframe - last_match_, 0), params_.dtw.max_step);
       cruise_samples_ = std::min(cruise_samples_ + 1, params_.cruise_speed_frames);
       cruise_speed_ += (step - cruise_speed_) / cruise_samples_;
     }
     ++tracked_frames_;
+    at_start_ = false;
     last_match_ = match.keyframe;
     status_ = match.keyframe >= n - 1 - params_.end_of_route_keyframes ? LocalizationStatus::kEndOfRoute :
                                                                           LocalizationStatus::kTracking;
@@ -716,6 +761,35 @@ LocalizationResult Localizer::step(const uint8_t* query)
     result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
   }
   return result;
+}
+
+double Localizer::evidenceShare(const SequenceMatch& match) const
+{
+  return std::min(1.0, static_cast<double>(ring_.distinctViews(match.rows)) / std::max(1, windowRows()));
+}
+
+double Localizer::matchConfidence(const SequenceMatch& match, bool other_place, double evidence) const
+{
+  const bool has_reference = other_place ? match.has_second_place : match.has_second;
+  const float reference_cost = other_place ? match.second_place_cost : match.second_cost;
+  const float reference = has_reference ? reference_cost : params_.dtw.missing_cost;
+  const double margin = std::max(0.0f, reference - match.cost);
+  return 1.0 - std::exp(-margin * evidence / params_.confidence_scale);
+}
+
+bool Localizer::startRefuted(const SequenceMatch& track, bool informative, SequenceMatch* elsewhere)
+{
+  // The global search over the same rows, with no start: as at start-up without a known start, a place
+  // is confirmed by init_confirm_frames confirmable answers in a row that move as the robot can.
+  *elsewhere = dtw_.match(ring_, 0, static_cast<int>(map_->size()), params_.ring_buffer_rows, false,
+                          keyframe_run_.data());
+  const bool confirmable =
+      matchConfidence(*elsewhere, true, evidenceShare(*elsewhere)) >= params_.confidence_threshold;
+  if (ring_.size() < params_.min_init_frames || !confirmation_.update(elsewhere->keyframe, confirmable, informative))
+    return false;
+  confirmation_.clear();
+  // Confirmed at the track's place (copies of one view count as one place): the start holds.
+  return std::abs(keyframe_run_[elsewhere->keyframe] - keyframe_run_[track.keyframe]) > params_.dtw.exclusion_radius;
 }
 
 cv::Mat Localizer::renderDebugImage(int first_keyframe, int width, int scale) const

@@ -142,6 +142,7 @@ const std::map<std::string, Setter>& localizerSetters()
     { "seqslam_min_velocity", LOCALIZER_FIELD(float, seqslam.min_velocity) },
     { "seqslam_max_velocity", LOCALIZER_FIELD(float, seqslam.max_velocity) },
     { "seqslam_velocity_step", LOCALIZER_FIELD(float, seqslam.velocity_step) },
+    { "start_keyframe", LOCALIZER_FIELD(int, start_keyframe) },
     { "min_init_frames", LOCALIZER_FIELD(int, min_init_frames) },
     { "confidence_threshold", LOCALIZER_FIELD(double, confidence_threshold) },
     { "confidence_scale", LOCALIZER_FIELD(float, confidence_scale) },

@@ -193,12 +193,13 @@ TEST(LocalizerParams, ValidateNamesInvalidValues)
 
 TEST(Localizer, TracksExactKeyframesInOrder)
 {
-  // 60 random keyframes; queries are keyframes 0..30 in order. The first global answer comes with the
-  // min_init_frames-th frame (index 4); it is confirmed after init_confirm_frames consecutive confident
-  // answers, so frame index 4 + 5 - 1 = 8 is the first tracking one. From there every answer is the
-  // query's own index, tracking, no shift.
+  // 60 random keyframes; queries are keyframes 0..30 in order, the start unknown (start_keyframe -1).
+  // The first global answer comes with the min_init_frames-th frame (index 4); it is confirmed after
+  // init_confirm_frames consecutive confident answers, so frame index 4 + 5 - 1 = 8 is the first
+  // tracking one. From there every answer is the query's own index, tracking, no shift.
   const auto map = syntheticMap(60);
   arl::LocalizerParams params;
+  params.start_keyframe = -1;
   params.ring_buffer_rows = 20;  // fewer rows than frames below, so the buffer must wrap
   const int first_tracking = (params.min_init_frames - 1) + (params.init_confirm_frames - 1);
   ASSERT_EQ(8, first_tracking);
@@ -231,14 +232,81 @@ TEST(Localizer, TracksExactKeyframesInOrder)
   EXPECT_EQ(30, localizer.lastPath().back());
 }
 
+TEST(Localizer, TracksFromTheStartKeyframeFromTheFirstFrame)
+{
+  // Teach and repeat: the repeat starts where the teach did (start_keyframe, default 0). The same 60
+  // keyframes and queries as TracksExactKeyframesInOrder: every frame is tracking and answered with its
+  // own keyframe, the first one included. Started at keyframe 25, the same from keyframe 25 on.
+  const auto map = syntheticMap(60);
+  for (const int start : { 0, 25 })
+  {
+    arl::LocalizerParams params;
+    params.ring_buffer_rows = 20;
+    params.start_keyframe = start;
+    arl::Localizer localizer(map, params);
+    for (int i = start; i <= start + 30; ++i)
+    {
+      const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i));
+      EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "start " << start << ", frame " << i;
+      EXPECT_EQ(i, result.keyframe) << "start " << start << ", frame " << i;
+    }
+  }
+}
+
+TEST(Localizer, AStartElsewhereIsRefutedByTheGlobalSearch)
+{
+  // Told it starts at keyframe 0, the robot starts at keyframe 40. The global search over the same rows
+  // confirms 40.. as an unknown start would (TracksExactKeyframesInOrder: the 9th frame) and the track
+  // moves there; until then the answers stay near the start (the paths all start at keyframe 0).
+  const auto map = syntheticMap(60);
+  arl::LocalizerParams params;
+  params.ring_buffer_rows = 20;
+  arl::Localizer localizer(map, params);
+  const int switched = (params.min_init_frames - 1) + (params.init_confirm_frames - 1);
+  for (int i = 0; i < 17; ++i)  // keyframes 40..56 (57 on: the end of the route)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, 40 + i));
+    EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "frame " << i;
+    if (i < switched)
+      EXPECT_LE(result.keyframe, 2 * i) << "frame " << i;  // at most s = 2 keyframes per frame from 0
+    else
+      EXPECT_EQ(40 + i, result.keyframe) << "frame " << i;
+  }
+  // A start that does not exist is refused.
+  params.start_keyframe = 60;
+  EXPECT_THROW(arl::Localizer(map, params), std::invalid_argument);
+  params.start_keyframe = 59;
+  EXPECT_NO_THROW(arl::Localizer(map, params));
+}
+
+TEST(Localizer, AResetStartsAgainAtTheStartKeyframe)
+{
+  // A looping bag: time goes back, and the repeat starts again where the teach did. Tracking from the
+  // first frame after the jump, at keyframe 0.
+  const auto map = syntheticMap(60);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  const int64_t period = 100000000LL;
+  for (int i = 0; i <= 30; ++i)
+    ASSERT_EQ(i, localizer.process(keyframeCopy(*map, i), (i + 1) * period).keyframe);
+  for (int i = 0; i <= 10; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i), (i + 1) * period);
+    EXPECT_EQ(i == 0, result.time_went_back) << "frame " << i;
+    EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "frame " << i;
+    EXPECT_EQ(i, result.keyframe) << "frame " << i;
+  }
+}
+
 TEST(Localizer, ConfidenceWeighsTheMarginByTheRowsSeen)
 {
   // Reported confidence = 1 - exp(-margin * min(1, distinct rows / K) / confidence_scale), where margin is the
   // second-best end's per-row cost minus the best's (OnlineDtw::match on the localizer's own ring buffer,
   // recomputed here). On a 40-keyframe map the tracking band (radius 40) covers every keyframe, so every
   // row holds all columns. A path over 5 rows is a quarter of the evidence of one over K = 20.
+  // The start unknown: every path may start anywhere (TracksFromTheStartKeyframe has a known start).
   const auto map = syntheticMap(40);
   arl::LocalizerParams params;
+  params.start_keyframe = -1;
   params.ring_buffer_rows = 20;
   arl::Localizer localizer(map, params);
   arl::OnlineDtw dtw(params.dtw);
@@ -290,6 +358,7 @@ TEST(Localizer, ConfirmsAPlaceOnDistinctViewsNotOnCopiesOfOne)
   // init_confirm_frames consecutive confirmable answers it tracks the right keyframes.
   const auto map = syntheticMap(60);
   arl::LocalizerParams params;
+  params.start_keyframe = -1;  // the start unknown: a global search
   params.ring_buffer_rows = 20;
   arl::Localizer localizer(map, params);
   for (int i = 0; i < 15; ++i)
@@ -346,6 +415,7 @@ TEST(Localizer, CoarseGlobalSearchAnswersWithTheFullResolutionShift)
   // express, so the +3 reported on the global answers comes from the full-size comparison.
   const auto map = syntheticMap(60);
   arl::LocalizerParams params;
+  params.start_keyframe = -1;  // the start unknown: a global search
   params.coarse_search_keyframes = 1;
   arl::Localizer localizer(map, params);
   ASSERT_TRUE(localizer.coarseGlobalSearch());
@@ -594,7 +664,9 @@ TEST(Localizer, SetParamsWithAnotherRingBufferSizeKeepsTracking)
 TEST(Localizer, ResetGoesBackToInitializing)
 {
   const auto map = syntheticMap(60);
-  arl::Localizer localizer(map, arl::LocalizerParams());
+  arl::LocalizerParams params;
+  params.start_keyframe = -1;  // the start unknown: a global search after the reset too
+  arl::Localizer localizer(map, params);
   for (int i = 0; i <= 12; ++i)
     ASSERT_NE(LocalizationStatus::kLost, localizer.process(keyframeCopy(*map, i)).status);
   localizer.reset();
@@ -612,9 +684,12 @@ TEST(Localizer, ResetGoesBackToInitializing)
 TEST(Localizer, StampsSayWhenTimeWentBackAndWhenFramesWereMissed)
 {
   // 10 Hz stamps. Keyframes 0..20 one per frame; then the camera misses keyframes 21..29 (a 1 s gap:
-  // 9 frames) while the robot drives on; then time goes back (a looping bag) to keyframe 5.
+  // 9 frames) while the robot drives on; then time goes back (a looping bag) to keyframe 5. The start
+  // unknown: the restart searches the whole map.
   const auto map = syntheticMap(60);
-  arl::Localizer localizer(map, arl::LocalizerParams());
+  arl::LocalizerParams params;
+  params.start_keyframe = -1;
+  arl::Localizer localizer(map, params);
   const int64_t start = 1000000000LL, period = 100000000LL;
   arl::LocalizationResult result;
   for (int i = 0; i <= 20; ++i)
@@ -704,6 +779,7 @@ TEST(Localizer, AGapOfKMinusOneFramesLosesTheTrackOneShorterDoesNot)
     for (const int missed : { 8, 9 })
     {
       arl::LocalizerParams params;
+      params.start_keyframe = -1;  // the start unknown: tracking once a global answer is confirmed
       params.ring_buffer_rows = 10;
       params.seqslam.sequence_length = 10;
       if (seqslam)
@@ -1257,12 +1333,43 @@ TEST(Localizer, StartsMidRouteAndLocalizesGlobally)
   SKIP_WITHOUT_NORDLAND();
   std::vector<QueryFrame> queries;
   appendStretch(&queries, 150, 100);
-  const LostAndFound run = runQueries(queries);
+  arl::LocalizerParams unknown;
+  unknown.start_keyframe = -1;
+  const LostAndFound run = runQueries(queries, unknown);
   const int frames = run.framesToRelocalize(0);
-  std::printf("mid-route start: right after %d frames\n", frames);
+  std::printf("mid-route start, start unknown: right after %d frames\n", frames);
   // measured 10: min_init_frames - 1 = 4 frames to the first answer, then 6 until 5 consecutive answers
   // were confirmable (the margin over the first 5 rows weighs 5 / K; 8 frames when it did not count)
   EXPECT_LE(frames, 12);
+  EXPECT_EQ(0, std::count(run.marks.begin(), run.marks.begin() + frames, 'x'));  // not tracking meanwhile
+
+  // Told it starts at keyframe 0 (the default): tracking from there until the global search over the
+  // same rows confirms keyframes 150.. (startRefuted), as soon as with the start unknown.
+  const LostAndFound told = runQueries(queries);
+  const int told_frames = told.framesToRelocalize(0);
+  std::printf("mid-route start, told keyframe 0: right after %d frames\n", told_frames);
+  EXPECT_EQ(frames, told_frames);
+  EXPECT_EQ(told_frames, std::count(told.marks.begin(), told.marks.begin() + told_frames, 'x'));
+}
+
+TEST(Localizer, AKnownStartIsRightFromTheFirstFrameOnRealFrames)
+{
+  SKIP_WITHOUT_NORDLAND();
+  // Winter from the start of the summer map (keyframes 0..99). With the start known (start_keyframe 0)
+  // every frame is tracking, and the first frames are right; unknown, the first are not answered until
+  // a global answer is confirmed (10 frames, StartsMidRouteAndLocalizesGlobally).
+  std::vector<QueryFrame> queries;
+  appendStretch(&queries, 0, 100);
+  const LostAndFound known = runQueries(queries);
+  arl::LocalizerParams params;
+  params.start_keyframe = -1;
+  const LostAndFound unknown = runQueries(queries, params);
+  const long known_right = std::count(known.marks.begin(), known.marks.end(), '.');
+  const long unknown_right = std::count(unknown.marks.begin(), unknown.marks.end(), '.');
+  std::printf("start known: %ld of 100 right, unknown: %ld\n", known_right, unknown_right);
+  EXPECT_EQ(0, known.framesToRelocalize(0));
+  EXPECT_EQ(0, std::count(known.marks.begin(), known.marks.end(), 'i'));
+  EXPECT_GT(known_right, unknown_right);
 }
 
 TEST(Localizer, CoarseGlobalSearchStartsMidRouteLikeTheFullSizeOne)
@@ -1270,12 +1377,14 @@ TEST(Localizer, CoarseGlobalSearchStartsMidRouteLikeTheFullSizeOne)
   SKIP_WITHOUT_NORDLAND();
   // The same mid-route start with the global search on halved images (forced on this 300-keyframe map).
   arl::LocalizerParams params;
+  params.start_keyframe = -1;  // the start unknown: a global search
+  arl::LocalizerParams full_params = params;
   params.coarse_search_keyframes = 1;
   arl::Localizer probe(summerStretchMap(), params);
   ASSERT_TRUE(probe.coarseGlobalSearch());
   std::vector<QueryFrame> queries;
   appendStretch(&queries, 150, 100);
-  const LostAndFound full = runQueries(queries);
+  const LostAndFound full = runQueries(queries, full_params);
   const LostAndFound coarse = runQueries(queries, params);
   const int frames = coarse.framesToRelocalize(0);
   std::printf("mid-route start, coarse global search: right after %d frames\n", frames);

@@ -360,7 +360,8 @@ class LocalizeOfflineTest(unittest.TestCase):
         params = os.path.join(self.tmp, 'shared_params.yaml')
         with open(params, 'w') as f:
             f.write('preprocessor:\n  normalization_strength: 0.1\nmap_recorder:\n  every_nth: 3\n'
-                    'localizer:\n  min_init_frames: 30  # no answer is confirmed before 30 rows\n')
+                    'localizer:\n  start_keyframe: -1  # the start unknown: a global search\n'
+                    '  min_init_frames: 30  # no answer is confirmed before 30 rows\n')
         output = os.path.join(self.tmp, 'shared_params.csv')
         result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
                                  '--params', params)
@@ -372,7 +373,7 @@ class LocalizeOfflineTest(unittest.TestCase):
         with open(params, 'a') as f:
             f.write('  ring_bufer_rows: 10\n')
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
-                                         '--params', params), 'ring_bufer_rows', 'shared_params.yaml:7')
+                                         '--params', params), 'ring_bufer_rows', 'shared_params.yaml:8')
 
     def test_preprocessing_given_for_a_map_file_must_agree_with_it(self):
         # A map file's keyframes were preprocessed with its stored parameters; a query preprocessed with

@@ -242,7 +242,8 @@ class RobustnessTest(unittest.TestCase):
         # named (before, all but the invalid one were ignored or clamped without a word).
         manager, name = '/repeat/repeat_manager', '/repeat/checked_localizer'
         rospy.set_param(name + '/map', self.map_path)
-        rospy.set_param(name + '/min_init_frames', 25)  # default 5: tracking from about frame 10
+        rospy.set_param(name + '/start_keyframe', -1)  # the start unknown: a global search, and
+        rospy.set_param(name + '/min_init_frames', 25)  # (default 5) tracking from about frame 10
         rospy.set_param(name + '/exclusion_radius', -1)
         # Valid only together (the default minimum is 0.8): both must be taken.
         rospy.set_param(name + '/seqslam_min_velocity', 0.1)
