@@ -22,8 +22,8 @@ namespace along_route_localization
 
 enum class LocalizationStatus
 {
-  kInitializing,  ///< collecting frames for the first global sequence search
-  kTracking,      ///< following the route within the search band
+  kInitializing,  ///< collecting frames for the first global sequence search (the start unknown)
+  kTracking,      ///< following the route within the search band (from a known start: start_keyframe)
   kLost,          ///< confidence stayed low; searching the whole map again
   kEndOfRoute     ///< tracking, and the match is within the last keyframes of the map
 };

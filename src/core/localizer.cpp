@@ -583,7 +583,14 @@ LocalizationResult Localizer::step(const uint8_t* query)
   // A known start (start_keyframe) while its frame is still in the window: the track's paths all start
   // there, and the rows cover the whole map, so that a global search over the same rows can refute the
   // start (startRefuted) when the robot was not there.
-  const bool checking_start = tracking && rows_since_start_ >= 0 && rows_since_start_ < params_.ring_buffer_rows;
+  const bool checking_start = tracking && params_.method == SequenceMethod::kOnlineDtw && rows_since_start_ >= 0 &&
+                              rows_since_start_ < params_.ring_buffer_rows;
+  if (!checking_start && rows_since_start_ >= 0)
+  {
+    // The start's frame has left the window (or K shrank below it): the track is on its own.
+    rows_since_start_ = -1;
+    confirmation_.clear();
+  }
   int first = 0, width = n;
   // while tracking: one keyframe per frame (the first frame of a known start: the start keyframe)
   const int predicted = at_start_ ? last_match_ : std::min(n - 1, last_match_ + 1);
@@ -685,8 +692,6 @@ LocalizationResult Localizer::step(const uint8_t* query)
       tracked_frames_ = 0;
       loss_.clear();
     }
-    else if (rows_since_start_ >= params_.ring_buffer_rows)
-      confirmation_.clear();  // the start's frame leaves the window: the track is on its own
   }
 
   // Confidence: how much cheaper per row the best path is than the best path ending elsewhere. The
@@ -729,6 +734,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
     status_ = LocalizationStatus::kLost;
     ring_.clear();  // the rows of a lost track cover only its band
     rows_since_start_ = -1;
+    confirmation_.clear();  // (a lost start's global search had counted on rows now gone)
     relocalize_from_recent_ = true;
     loss_.clear();
   }

@@ -162,6 +162,7 @@ void expectParallelEqualsSerial(arl::CostFunction cost_function, int map_size, i
 {
   const auto map = syntheticMap(map_size);
   arl::LocalizerParams params;
+  params.start_keyframe = -1;  // the start unknown: the first frames search the whole map
   params.cost_function = cost_function;
   params.lost_after_frames = 3;
   params.parallel = false;
