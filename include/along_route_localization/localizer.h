@@ -98,7 +98,8 @@ struct LocalizerParams
   bool run_dead_reckoning = true;
   /// On maps of at least this many keyframes (0: never) a global search compares 2x2-averaged images
   /// (halveImage) with a shift range of ceil(m / 2): a quarter of the bytes and about half the shifts. The
-  /// answer's reported shift is still measured at full resolution; tracking always is. On the 1788-frame
+  /// answer's reported shift is still measured at full resolution; tracking always is, but for the rows of
+  /// a known start's check (start_keyframe), which serve its global search too. On the 1788-frame
   /// Nordland route the coarse rows gave the same accuracy (README, Performance).
   int coarse_search_keyframes = 4096;
   /// While tracking, the new match continues from the last one (L): it is chosen among the ends
@@ -296,9 +297,9 @@ private:
   bool repeatsLastView(const uint8_t* query) const;
   /// Status after construction or reset(): tracking from start_keyframe, or initializing.
   void start();
-  /// While the frame of a known start (start_keyframe) is in the window: the global search over the same
-  /// rows (*elsewhere, no start) confirmed a place other than the track's (`track`): the robot did not
-  /// start where it was told.
+  /// While a known start (start_keyframe) is checked (the first K new views): the global search over the
+  /// same rows (*elsewhere, no start) confirmed a place other than the track's (`track`): the robot did
+  /// not start where it was told.
   bool startRefuted(const SequenceMatch& track, bool informative, SequenceMatch* elsewhere);
   /// The share of a full window's evidence a match has seen: its distinct views / K, at most 1.
   double evidenceShare(const SequenceMatch& match) const;
@@ -370,7 +371,9 @@ private:
   int last_match_ = -1;
   bool at_start_ = false;                // tracking from start_keyframe, no frame answered yet
   int start_match_ = -1;                 // the start keyframe of a known start
-  int rows_since_start_ = -1;            // rows appended since a known start (start_keyframe); -1: none
+  bool start_check_ = false;             // a known start is being checked (startRefuted)
+  int rows_since_start_ = 0;             // rows appended since the known start
+  int views_since_start_ = 0;            // of them, informative new views
   int tracked_frames_ = 0;               // frames answered since tracking last started
   double cruise_speed_ = 1.0;            // keyframes per frame: the mean of cruise_samples_ samples
   int cruise_samples_ = 1;               // the nominal speed counts as the first

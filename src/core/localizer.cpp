@@ -224,13 +224,14 @@ void Localizer::start()
   status_ = LocalizationStatus::kInitializing;
   last_match_ = -1;
   at_start_ = false;
-  rows_since_start_ = -1;
+  start_check_ = false;
+  rows_since_start_ = views_since_start_ = 0;
   if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
     return;
   status_ = LocalizationStatus::kTracking;
   last_match_ = start_match_ = params_.start_keyframe;
   at_start_ = true;
-  rows_since_start_ = 0;
+  start_check_ = true;
 }
 
 void Localizer::setParams(const LocalizerParams& params)
@@ -550,7 +551,7 @@ void Localizer::skipFrames(int count)
     else if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
       status_ = LocalizationStatus::kLost;
     ring_.clear();
-    rows_since_start_ = -1;
+    start_check_ = false;
     confirmation_.clear();
     loss_.clear();
     last_path_.clear();
@@ -580,15 +581,16 @@ LocalizationResult Localizer::step(const uint8_t* query)
   const bool tracking = last_match_ >= 0 && (status_ == LocalizationStatus::kTracking ||
                                              status_ == LocalizationStatus::kEndOfRoute);
   const bool global = params_.method == SequenceMethod::kSeqSlam || !tracking;
-  // A known start (start_keyframe) while its frame is still in the window: the track's paths all start
-  // there, and the rows cover the whole map, so that a global search over the same rows can refute the
-  // start (startRefuted) when the robot was not there.
-  const bool checking_start = tracking && params_.method == SequenceMethod::kOnlineDtw && rows_since_start_ >= 0 &&
-                              rows_since_start_ < params_.ring_buffer_rows;
-  if (!checking_start && rows_since_start_ >= 0)
+  // A known start (start_keyframe) is checked until K new views have come since it: the rows cover the
+  // whole map, so that a global search over them can refute the start (startRefuted) when the robot was
+  // not there, as soon as a global search would have found the place with the start unknown (a robot
+  // standing still elsewhere is not confirmed there before it moves on, ConfirmsAPlaceOnDistinctViews...).
+  // While the start's own frame is in the window, every path of the track starts at it.
+  const bool checking_start = tracking && params_.method == SequenceMethod::kOnlineDtw && start_check_ &&
+                              views_since_start_ < params_.ring_buffer_rows;
+  if (start_check_ && !checking_start)
   {
-    // The start's frame has left the window (or K shrank below it): the track is on its own.
-    rows_since_start_ = -1;
+    start_check_ = false;  // enough views to go on its own
     confirmation_.clear();
   }
   int first = 0, width = n;
@@ -617,8 +619,11 @@ LocalizationResult Localizer::step(const uint8_t* query)
     computeRow(query, query_energy, result.query_informative, repeated_query, true, 0, n);
   else
     computeRow(query, query_energy, result.query_informative, repeated_query, global, first, width);
-  if (rows_since_start_ >= 0)
+  if (checking_start)
+  {
     ++rows_since_start_;
+    views_since_start_ += query && result.query_informative && !repeated_query ? 1 : 0;
+  }
   if (!recent_queries_.empty())
   {
     RecentQuery& recent = recent_queries_[recent_next_];
@@ -664,8 +669,10 @@ LocalizationResult Localizer::step(const uint8_t* query)
       dtw_.setParams(cruiseSpeedTieBreak(params_.dtw, cruise_speed_));
     // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
     // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
-    // A known start while its frame is the oldest in the window: every path starts there.
-    const int path_start = checking_start ? start_match_ : -1;
+    // A known start while its frame is in the window (the oldest row: the ring was empty at the start):
+    // every path starts there.
+    const bool start_in_window = rows_since_start_ <= std::min(params_.ring_buffer_rows, ring_.size());
+    const int path_start = checking_start && start_in_window ? start_match_ : -1;
     match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, !global, keyframe_run_.data(), first_choice,
                        last_choice, prior, path_start);
   }
@@ -679,14 +686,16 @@ LocalizationResult Localizer::step(const uint8_t* query)
   else
     run_position_ = -1.0;
   bool left_start = false;  // the global search confirmed another place than the known start's track
-  if (checking_start)
+  if (checking_start && !query)
+    confirmation_.update(-1, false, false);  // a missed frame: as in a global search (no search for it)
+  else if (checking_start)
   {
     SequenceMatch elsewhere;
     if (startRefuted(match, result.query_informative, &elsewhere))
     {
       match = elsewhere;
       left_start = true;
-      rows_since_start_ = -1;
+      start_check_ = false;
       run_position_ = -1.0;
       last_path_.clear();
       tracked_frames_ = 0;
@@ -732,9 +741,9 @@ LocalizationResult Localizer::step(const uint8_t* query)
   else if (loss_.update(confident, result.query_informative && !repeated_query))  // new views only
   {
     status_ = LocalizationStatus::kLost;
-    ring_.clear();  // the rows of a lost track cover only its band
-    rows_since_start_ = -1;
-    confirmation_.clear();  // (a lost start's global search had counted on rows now gone)
+    ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
+    start_check_ = false;
+    confirmation_.clear();
     relocalize_from_recent_ = true;
     loss_.clear();
   }
@@ -760,7 +769,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
   if (result.keyframe >= 0)
   {
     result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
-    if (global && coarse_difference_ && result.query_informative)  // a coarse row holds no full-size shift
+    if ((global || checking_start) && coarse_difference_ && result.query_informative)  // no full-size shift in a coarse row
       result.shift_px = difference_->compare(query, map_->keyframe(result.keyframe)).shift_px;
     else if (result.keyframe >= newest_first_ && result.keyframe < newest_first_ + newest_width_)
       result.shift_px = shifts_[result.keyframe];
@@ -786,12 +795,15 @@ double Localizer::matchConfidence(const SequenceMatch& match, bool other_place, 
 bool Localizer::startRefuted(const SequenceMatch& track, bool informative, SequenceMatch* elsewhere)
 {
   // The global search over the same rows, with no start: as at start-up without a known start, a place
-  // is confirmed by init_confirm_frames confirmable answers in a row that move as the robot can.
+  // is confirmed by init_confirm_frames confirmable answers in a row that move as the robot can, from the
+  // min_init_frames-th row on.
+  if (ring_.size() < params_.min_init_frames)
+    return false;
   *elsewhere = dtw_.match(ring_, 0, static_cast<int>(map_->size()), params_.ring_buffer_rows, false,
                           keyframe_run_.data());
   const bool confirmable =
       matchConfidence(*elsewhere, true, evidenceShare(*elsewhere)) >= params_.confidence_threshold;
-  if (ring_.size() < params_.min_init_frames || !confirmation_.update(elsewhere->keyframe, confirmable, informative))
+  if (!confirmation_.update(elsewhere->keyframe, confirmable, informative))
     return false;
   confirmation_.clear();
   // Confirmed at the track's place (copies of one view count as one place): the start holds.

@@ -346,6 +346,9 @@ LocalizerParams LocalizerNodelet::effectiveParams(const LocalizerParams& request
   LocalizerParams params = requested;
   if (map_ && params.max_shift_px > largestShiftFor(map_->width()))
     params.max_shift_px = largestShiftFor(map_->width());
+  // A start beyond this map (e.g. given for another map): unknown, a global search (useMapIfAccepted says so).
+  if (map_ && params.start_keyframe >= static_cast<int>(map_->size()))
+    params.start_keyframe = -1;
   return params;
 }
 
@@ -420,6 +423,9 @@ void LocalizerNodelet::useMapIfAccepted()
   }
   if (localizer_)
     return;
+  if (params_.start_keyframe >= static_cast<int>(map_->size()))
+    NODELET_WARN("~start_keyframe = %d is beyond map %s's %zu keyframes: the start is unknown (a global search)",
+                 params_.start_keyframe, map_path_.c_str(), map_->size());
   try
   {
     localizer_.reset(new Localizer(map_, effectiveParams(params_)));

@@ -198,6 +198,15 @@ TEST(OnlineDtw, APathStartFixesWhereEveryPathBegins)
   match = dtw.match(buffer, 0, 30, 4, true, nullptr, 0, std::numeric_limits<int>::max(), arl::EndPrior(), 0);
   EXPECT_EQ(3, match.keyframe);
   EXPECT_NEAR(0.0f, match.cost, 1e-6);
+
+  // Ends 15..29 only: the window's older rows start at keyframe 15 - 3 * 2 = 9, not 0, and the start is
+  // still keyframe 17 (not the window's column 17).
+  match = dtw.match(buffer, 15, 15, 4, true, nullptr, 0, std::numeric_limits<int>::max(), arl::EndPrior(), 17);
+  EXPECT_EQ(20, match.keyframe);
+  EXPECT_NEAR(0.5f / 4, match.cost, 1e-6);
+  EXPECT_EQ((std::vector<int>{ 17, 18, 19, 20 }), match.path);
+  for (int i = 0; i < 15; ++i)
+    EXPECT_EQ(i + 15 >= 17 && i + 15 <= 23, std::isfinite(dtw.lastAccumulated()[i])) << "keyframe " << i + 15;
 }
 
 TEST(OnlineDtw, SecondCostRespectsExclusionRadius)

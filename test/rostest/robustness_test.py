@@ -235,6 +235,33 @@ class RobustnessTest(unittest.TestCase):
             time.sleep(0.05)
         self.wait_for_stamp(self.localizations, sent[-1].header.stamp, 'localizations from the reloaded localizer')
 
+    def test_a_start_beyond_the_map_is_unknown_with_a_warning(self):
+        # ~start_keyframe given for a longer route: this map keeps working, with the start unknown (a
+        # global search first, status initializing), and the warning names the value and the map.
+        manager, name = '/repeat/repeat_manager', '/repeat/start_localizer'
+        rospy.set_param(name + '/map', self.map_path)
+        rospy.set_param(name + '/start_keyframe', 1000)
+        answers = fx.Collector('/repeat/start_localization', Localization, queue_size=1000)
+        loaded = rospy.ServiceProxy(manager + '/load_nodelet', NodeletLoad)(
+            name, 'along_route_localization/localizer', ['/repeat/localization'], ['/repeat/start_localization'],
+            [], '')
+        self.assertTrue(loaded.success)
+        try:
+            text = '~start_keyframe = 1000 is beyond map %s' % self.map_path
+            fx.wait_for(lambda: self.rosout.matching(text), 10, 'a message starting %r' % text)
+            fx.wait_for(lambda: self.camera.get_num_connections() > 0, 10, 'the preprocessor')
+            time.sleep(1.0)  # the new localizer's subscription to image_preprocessed
+            sent = [self.good(i) for i in range(FRAMES)]
+            for msg in sent:
+                self.camera.publish(msg)
+                time.sleep(0.05)
+            self.wait_for_stamp(answers, sent[-1].header.stamp, 'localizations from the started localizer')
+            statuses = [m.status for m in answers.snapshot()]
+            self.assertEqual(statuses[0], Localization.STATUS_INITIALIZING, statuses)
+            self.assertIn(Localization.STATUS_TRACKING, statuses)
+        finally:
+            rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)(name)
+
     def test_static_parameters_are_checked_one_by_one(self):
         # A second localizer in the running manager, given one valid static parameter, one invalid, one
         # dynamic one outside its .cfg range, one misspelt and one that is the preprocessor's: the valid
