@@ -22,6 +22,7 @@ from along_route_localization.srv import LoadMap
 import route_fixture as fx
 
 FRAMES = 40
+MANAGER = '/repeat/repeat_manager'
 
 
 def image(encoding, width, height, data, step=None):
@@ -214,94 +215,85 @@ class RobustnessTest(unittest.TestCase):
         self.wait_for_stamp(self.localizations, again.header.stamp, 'localizations once the parameters match again')
 
     def test_localizer_unloaded_and_loaded_again(self):
-        manager = '/repeat/repeat_manager'
-        unloaded = rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)('/repeat/localizer')
+        unloaded = rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)('/repeat/localizer')
         self.assertTrue(unloaded.success)
         probe = self.good(3)
         self.camera.publish(probe)
         self.wait_for_stamp(self.preprocessed, probe.header.stamp, 'the preprocessor to go on alone')
         time.sleep(0.5)
         self.assertFalse([m for m in self.localizations.snapshot() if m.header.stamp == probe.header.stamp])
-        loaded = rospy.ServiceProxy(manager + '/load_nodelet', NodeletLoad)(
+        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
             '/repeat/localizer', 'along_route_localization/localizer', [], [], [], '')
         self.assertTrue(loaded.success)
         fx.wait_for_service('/repeat/localizer/load_map')
         self.assertTrue(rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(self.map_path).success)
+        self.drive_teach_frames(self.localizations, 'localizations from the reloaded localizer', count=20)
+
+    def load_localizer(self, name, params, output):
+        """Loads another localizer `name` into the running manager, with the map and the private
+        parameters `params`; its answers are collected from `output`."""
+        rospy.set_param(name + '/map', self.map_path)
+        for key, value in params.items():
+            rospy.set_param(name + '/' + key, value)
+        answers = fx.Collector(output, Localization, queue_size=1000)
+        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
+            name, 'along_route_localization/localizer', ['/repeat/localization'], [output], [], '')
+        self.assertTrue(loaded.success)
+        return answers
+
+    def drive_teach_frames(self, answers, what, count=FRAMES):
+        """Sends `count` teach frames through the preprocessor once a new localizer listens; the statuses
+        collected in `answers`."""
         fx.wait_for(lambda: self.camera.get_num_connections() > 0, 10, 'the preprocessor')
         time.sleep(1.0)  # the new localizer's subscription to image_preprocessed
-        sent = [self.good(i) for i in range(20)]
+        sent = [self.good(i) for i in range(count)]
         for msg in sent:
             self.camera.publish(msg)
             time.sleep(0.05)
-        self.wait_for_stamp(self.localizations, sent[-1].header.stamp, 'localizations from the reloaded localizer')
+        self.wait_for_stamp(answers, sent[-1].header.stamp, what)
+        return [m.status for m in answers.snapshot()]
 
     def test_a_start_beyond_the_map_is_unknown_with_a_warning(self):
         # ~start_keyframe given for a longer route: this map keeps working, with the start unknown (a
         # global search first, status initializing), and the warning names the value and the map.
-        manager, name = '/repeat/repeat_manager', '/repeat/start_localizer'
-        rospy.set_param(name + '/map', self.map_path)
-        rospy.set_param(name + '/start_keyframe', 1000)
-        answers = fx.Collector('/repeat/start_localization', Localization, queue_size=1000)
-        loaded = rospy.ServiceProxy(manager + '/load_nodelet', NodeletLoad)(
-            name, 'along_route_localization/localizer', ['/repeat/localization'], ['/repeat/start_localization'],
-            [], '')
-        self.assertTrue(loaded.success)
+        name = '/repeat/start_localizer'
+        answers = self.load_localizer(name, {'start_keyframe': 1000}, '/repeat/start_localization')
         try:
             text = '~start_keyframe = 1000 is beyond map %s' % self.map_path
             fx.wait_for(lambda: self.rosout.matching(text), 10, 'a message starting %r' % text)
-            fx.wait_for(lambda: self.camera.get_num_connections() > 0, 10, 'the preprocessor')
-            time.sleep(1.0)  # the new localizer's subscription to image_preprocessed
-            sent = [self.good(i) for i in range(FRAMES)]
-            for msg in sent:
-                self.camera.publish(msg)
-                time.sleep(0.05)
-            self.wait_for_stamp(answers, sent[-1].header.stamp, 'localizations from the started localizer')
-            statuses = [m.status for m in answers.snapshot()]
+            statuses = self.drive_teach_frames(answers, 'localizations from the started localizer')
             self.assertEqual(statuses[0], Localization.STATUS_INITIALIZING, statuses)
             self.assertIn(Localization.STATUS_TRACKING, statuses)
         finally:
-            rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)(name)
+            rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
 
     def test_static_parameters_are_checked_one_by_one(self):
         # A second localizer in the running manager, given one valid static parameter, one invalid, one
         # dynamic one outside its .cfg range, one misspelt and one that is the preprocessor's: the valid
         # one applies (before, one bad value reset them all to the defaults), and each of the others is
         # named (before, all but the invalid one were ignored or clamped without a word).
-        manager, name = '/repeat/repeat_manager', '/repeat/checked_localizer'
-        rospy.set_param(name + '/map', self.map_path)
-        rospy.set_param(name + '/start_keyframe', -1)  # the start unknown: a global search, and
-        rospy.set_param(name + '/min_init_frames', 25)  # (default 5) tracking from about frame 10
-        rospy.set_param(name + '/exclusion_radius', -1)
-        # Valid only together (the default minimum is 0.8): both must be taken.
-        rospy.set_param(name + '/seqslam_min_velocity', 0.1)
-        rospy.set_param(name + '/seqslam_max_velocity', 0.5)
-        rospy.set_param(name + '/max_step', 0)
-        rospy.set_param(name + '/ring_bufer_rows', 10)
-        rospy.set_param(name + '/normalization_strength', 0.2)
-        checked = fx.Collector('/repeat/checked_localization', Localization, queue_size=1000)
-        loaded = rospy.ServiceProxy(manager + '/load_nodelet', NodeletLoad)(
-            name, 'along_route_localization/localizer', ['/repeat/localization'], ['/repeat/checked_localization'],
-            [], '')
-        self.assertTrue(loaded.success)
+        name = '/repeat/checked_localizer'
+        checked = self.load_localizer(name, {
+            'start_keyframe': -1,  # the start unknown: a global search, and
+            'min_init_frames': 25,  # (default 5) tracking from about frame 10
+            'exclusion_radius': -1,
+            # Valid only together (the default minimum is 0.8): both must be taken.
+            'seqslam_min_velocity': 0.1, 'seqslam_max_velocity': 0.5,
+            'max_step': 0,
+            'ring_bufer_rows': 10,
+            'normalization_strength': 0.2,
+        }, '/repeat/checked_localization')
         try:
             for text in ('Ignoring ~exclusion_radius = -1', '~max_step = 0 is outside 1 .. ', '~ring_bufer_rows is not a parameter of the localizer',
                          "~normalization_strength is not read here: it is the preprocessor's"):
                 fx.wait_for(lambda: self.rosout.matching(text), 10, 'a message starting %r' % text)
             self.assertEqual(self.rosout.matching('Ignoring ~seqslam'), [])
-            fx.wait_for(lambda: self.camera.get_num_connections() > 0, 10, 'the preprocessor')
-            time.sleep(1.0)  # the new localizer's subscription to image_preprocessed
-            sent = [self.good(i) for i in range(FRAMES)]
-            for msg in sent:
-                self.camera.publish(msg)
-                time.sleep(0.05)
-            self.wait_for_stamp(checked, sent[-1].header.stamp, 'localizations from the checked localizer')
-            statuses = [m.status for m in checked.snapshot()]
+            statuses = self.drive_teach_frames(checked, 'localizations from the checked localizer')
             self.assertGreaterEqual(len(statuses), 30)
             first_tracking = statuses.index(Localization.STATUS_TRACKING)
             self.assertGreaterEqual(first_tracking + (FRAMES - len(statuses)), 24, statuses)
         finally:
-            rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)(name)
-
+            rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
 
 if __name__ == '__main__':
     rostest.rosrun('along_route_localization', 'robustness', RobustnessTest)
