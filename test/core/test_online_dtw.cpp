@@ -182,31 +182,32 @@ TEST(OnlineDtw, APathStartFixesWhereEveryPathBegins)
   EXPECT_EQ(3, match.keyframe);
   EXPECT_NEAR(0.0f, match.cost, 1e-6);
 
-  match = dtw.match(buffer, 0, 30, 4, true, nullptr, 0, std::numeric_limits<int>::max(), arl::EndPrior(), 17);
-  EXPECT_EQ(20, match.keyframe);
-  EXPECT_NEAR(0.5f / 4, match.cost, 1e-6);
-  EXPECT_EQ((std::vector<int>{ 17, 18, 19, 20 }), match.path);
-  const std::vector<float>& accumulated = dtw.lastAccumulated();
-  for (int i = 0; i < 30; ++i)
-    EXPECT_EQ(i >= 17 && i <= 23, std::isfinite(accumulated[i])) << "keyframe " << i;
-  EXPECT_NEAR(3.15f / 4, accumulated[23], 1e-5);
-  // The competition is among the paths from 17 too: the best end farther than 2 from 20 is 23.
-  ASSERT_TRUE(match.has_second);
-  EXPECT_NEAR(3.15f / 4, match.second_cost, 1e-5);
+  // All ends 0..29, and ends 15..29 only: there the window's older rows start at keyframe 15 - 3 * 2 = 9,
+  // not 0, and the start is still keyframe 17 (not the window's column 17).
+  for (const int first_end : { 0, 15 })
+  {
+    const int count = 30 - first_end;
+    match = dtw.match(buffer, first_end, count, 4, true, nullptr, 0, std::numeric_limits<int>::max(),
+                      arl::EndPrior(), 17);
+    EXPECT_EQ(20, match.keyframe) << "ends from " << first_end;
+    EXPECT_NEAR(0.5f / 4, match.cost, 1e-6) << "ends from " << first_end;
+    EXPECT_EQ((std::vector<int>{ 17, 18, 19, 20 }), match.path) << "ends from " << first_end;
+    const std::vector<float>& accumulated = dtw.lastAccumulated();
+    for (int i = 0; i < count; ++i)
+    {
+      const int k = first_end + i;
+      EXPECT_EQ(k >= 17 && k <= 23, std::isfinite(accumulated[i])) << "keyframe " << k;
+    }
+    EXPECT_NEAR(3.15f / 4, accumulated[23 - first_end], 1e-5);
+    // The competition is among the paths from 17 too: the best end farther than 2 from 20 is 23.
+    ASSERT_TRUE(match.has_second);
+    EXPECT_NEAR(3.15f / 4, match.second_cost, 1e-5);
+  }
 
   // Starting where A starts changes nothing for A.
   match = dtw.match(buffer, 0, 30, 4, true, nullptr, 0, std::numeric_limits<int>::max(), arl::EndPrior(), 0);
   EXPECT_EQ(3, match.keyframe);
   EXPECT_NEAR(0.0f, match.cost, 1e-6);
-
-  // Ends 15..29 only: the window's older rows start at keyframe 15 - 3 * 2 = 9, not 0, and the start is
-  // still keyframe 17 (not the window's column 17).
-  match = dtw.match(buffer, 15, 15, 4, true, nullptr, 0, std::numeric_limits<int>::max(), arl::EndPrior(), 17);
-  EXPECT_EQ(20, match.keyframe);
-  EXPECT_NEAR(0.5f / 4, match.cost, 1e-6);
-  EXPECT_EQ((std::vector<int>{ 17, 18, 19, 20 }), match.path);
-  for (int i = 0; i < 15; ++i)
-    EXPECT_EQ(i + 15 >= 17 && i + 15 <= 23, std::isfinite(dtw.lastAccumulated()[i])) << "keyframe " << i + 15;
 }
 
 TEST(OnlineDtw, SecondCostRespectsExclusionRadius)
