@@ -369,10 +369,9 @@ private:
 
   LocalizationStatus status_ = LocalizationStatus::kInitializing;
   int last_match_ = -1;
-  bool at_start_ = false;                // tracking from start_keyframe, no frame answered yet
   int start_match_ = -1;                 // the start keyframe of a known start
   bool start_check_ = false;             // a known start is being checked (startRefuted)
-  int rows_since_start_ = 0;             // rows appended since the known start
+  int rows_since_start_ = 0;             // rows appended since the known start (0: no frame answered yet)
   int views_since_start_ = 0;            // of them, informative new views
   int tracked_frames_ = 0;               // frames answered since tracking last started
   double cruise_speed_ = 1.0;            // keyframes per frame: the mean of cruise_samples_ samples

@@ -223,14 +223,12 @@ void Localizer::start()
 {
   status_ = LocalizationStatus::kInitializing;
   last_match_ = -1;
-  at_start_ = false;
   start_check_ = false;
   rows_since_start_ = views_since_start_ = 0;
   if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
     return;
   status_ = LocalizationStatus::kTracking;
   last_match_ = start_match_ = params_.start_keyframe;
-  at_start_ = true;
   start_check_ = true;
 }
 
@@ -343,9 +341,7 @@ void Localizer::rebuildComparators()
 
 void Localizer::reset()
 {
-  ring_.clear();
-  status_ = LocalizationStatus::kInitializing;
-  last_match_ = -1;
+  ring_.clear();  // (status_ and last_match_: start())
   confirmation_.clear();
   loss_.clear();
   frames_ = 0;
@@ -588,6 +584,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
   // While the start's own frame is in the window, every path of the track starts at it.
   const bool checking_start = tracking && params_.method == SequenceMethod::kOnlineDtw && start_check_ &&
                               views_since_start_ < params_.ring_buffer_rows;
+  const bool first_from_start = start_check_ && rows_since_start_ == 0;  // no frame answered since the start
   if (start_check_ && !checking_start)
   {
     start_check_ = false;  // enough views to go on its own
@@ -595,7 +592,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
   }
   int first = 0, width = n;
   // while tracking: one keyframe per frame (the first frame of a known start: the start keyframe)
-  const int predicted = at_start_ ? last_match_ : std::min(n - 1, last_match_ + 1);
+  const int predicted = first_from_start ? last_match_ : std::min(n - 1, last_match_ + 1);
   if (!global)
   {
     // The robot moves forward at most max_step keyframes a frame; centre the band one step ahead.
@@ -616,14 +613,13 @@ LocalizationResult Localizer::step(const uint8_t* query)
   }
   relocalize_from_recent_ = false;
   if (checking_start)
-    computeRow(query, query_energy, result.query_informative, repeated_query, true, 0, n);
-  else
-    computeRow(query, query_energy, result.query_informative, repeated_query, global, first, width);
-  if (checking_start)
   {
+    computeRow(query, query_energy, result.query_informative, repeated_query, true, 0, n);
     ++rows_since_start_;
     views_since_start_ += query && result.query_informative && !repeated_query ? 1 : 0;
   }
+  else
+    computeRow(query, query_energy, result.query_informative, repeated_query, global, first, width);
   if (!recent_queries_.empty())
   {
     RecentQuery& recent = recent_queries_[recent_next_];
@@ -753,14 +749,13 @@ LocalizationResult Localizer::step(const uint8_t* query)
     // relocalization's jump is not a step; a featureless frame's answer is dead reckoning). Their mean,
     // with the nominal speed as the first sample, until cruise_speed_frames samples; then a moving
     // average over that many.
-    if (tracking && !at_start_ && !left_start && result.query_informative && params_.cruise_speed_frames > 0)
+    if (tracking && !first_from_start && !left_start && result.query_informative && params_.cruise_speed_frames > 0)
     {
       const double step = std::min(std::max(match.keyframe - last_match_, 0), params_.dtw.max_step);
       cruise_samples_ = std::min(cruise_samples_ + 1, params_.cruise_speed_frames);
       cruise_speed_ += (step - cruise_speed_) / cruise_samples_;
     }
     ++tracked_frames_;
-    at_start_ = false;
     last_match_ = match.keyframe;
     status_ = match.keyframe >= n - 1 - params_.end_of_route_keyframes ? LocalizationStatus::kEndOfRoute :
                                                                           LocalizationStatus::kTracking;

@@ -140,10 +140,10 @@ class RobustnessTest(unittest.TestCase):
     def test_a_recorder_given_frames_it_cannot_record_says_so(self):
         # A recorder loaded into the repeat manager, recording the repeat's preprocessed images: a frame
         # of the wrong size is not recorded and its diagnostics say why, until a good one is.
-        manager, name = '/repeat/repeat_manager', '/repeat/second_recorder'
+        name = '/repeat/second_recorder'
         path = os.path.join(self.tmp, 'second_map.bag')
         rospy.set_param(name + '/map', path)
-        loaded = rospy.ServiceProxy(manager + '/load_nodelet', NodeletLoad)(
+        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
             name, 'along_route_localization/map_recorder', [], [], [], '')
         self.assertTrue(loaded.success)
         status, suffix = self.diagnostics.next_status, 'repeat/second_recorder: recording'
@@ -163,7 +163,7 @@ class RobustnessTest(unittest.TestCase):
             values = fx.status_values(recording)
             self.assertEqual((values['frames dropped'], values['frames seen while recording']), ('1', '2'))
         finally:
-            rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)(name)
+            rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
             fx.remove(path)
 
     def test_frames_smaller_than_the_output_pass_enlarged_with_a_warning(self):
