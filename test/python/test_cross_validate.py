@@ -1,0 +1,105 @@
+"""scripts/cross_validate and the scenarios and calibration it rests on: hand-worked examples."""
+
+import os
+import sys
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # finds scripts_under_test
+from scripts_under_test import load
+
+cross_validate = load("cross_validate")
+scenarios = load("make_nordland_scenarios")
+evaluate = load("evaluate")
+
+
+class FoldScenarioTest(unittest.TestCase):
+    def test_kidnapped_visits_the_thirds_in_the_order_first_last_middle(self):
+        map_frames, query, keyframes, shifts = scenarios.kidnapped(9)
+        self.assertEqual(map_frames, list(range(9)))
+        self.assertEqual(query, [0, 1, 2, 6, 7, 8, 3, 4, 5])
+        self.assertEqual(keyframes, query)
+        self.assertEqual(shifts, [0] * 9)
+
+    def test_mid_start_starts_a_third_of_the_way_along(self):
+        map_frames, query, keyframes, _ = scenarios.mid_start(10)
+        self.assertEqual(map_frames, list(range(10)))
+        self.assertEqual(query, [3, 4, 5, 6, 7, 8, 9])
+        self.assertEqual(keyframes, query)
+
+    def test_fog_stretches_are_20_to_60_frames_with_30_to_80_clear_between(self):
+        fog = scenarios.fog_stretches(2000, np.random.default_rng(3))
+        runs, value, length = [], fog[0], 0
+        for f in fog:
+            if f == value:
+                length += 1
+            else:
+                runs.append((value, length))
+                value, length = f, 1
+        runs.append((value, length))
+        self.assertEqual(runs[0][0], 0)
+        self.assertTrue(20 <= runs[0][1] <= 60)
+        for v, n in runs[1:-1]:
+            self.assertTrue((20 <= n <= 60) if v else (30 <= n <= 80), (v, n))
+
+    def test_fogged_keeps_a_fifth_of_the_contrast_around_the_mean(self):
+        image = np.array([[100, 200], [100, 200]], np.uint8)  # mean 150, deviations -50 / +50
+        out = scenarios.fogged(image, seed=1).astype(float)
+        # 150 + 0.2 * (+-50) = 160 / 140, plus noise of std 3 gray levels
+        self.assertTrue(np.all(np.abs(out[:, 1] - 160) <= 15))
+        self.assertTrue(np.all(np.abs(out[:, 0] - 140) <= 15))
+
+
+class CalibrationTest(unittest.TestCase):
+    def test_reliability_and_expected_calibration_error_by_hand(self):
+        # bin [0.1, 0.2): confidences 0.1, 0.1, correct 1 of 2 -> |0.5 - 0.1| = 0.4, weight 2/4
+        # bin [0.9, 1.0]: confidences 0.9, 1.0, correct 2 of 2 -> |1 - 0.95| = 0.05, weight 2/4
+        # ECE = 0.5 * 0.4 + 0.5 * 0.05 = 0.225
+        r = evaluate.reliability([0.1, 0.1, 0.9, 1.0], [True, False, True, True])
+        self.assertAlmostEqual(r["expected_calibration_error"], 0.225)
+        self.assertEqual([b["count"] for b in r["bins"]], [2, 2])
+        self.assertAlmostEqual(r["bins"][1]["mean_confidence"], 0.95)
+
+    def test_longest_run(self):
+        self.assertEqual(evaluate.longest_run([False, True, True, False, True, True, True]), 3)
+        self.assertEqual(evaluate.longest_run([]), 0)
+
+    def test_platt_fit_recovers_a_logistic_law(self):
+        # correct with probability sigma(-1 + 6 c): a large sample drawn from it gives back about -1 and 6
+        rng = np.random.default_rng(5)
+        c = rng.uniform(0, 1, 20000)
+        correct = rng.uniform(0, 1, c.size) < 1.0 / (1.0 + np.exp(-(-1.0 + 6.0 * c)))
+        offset, slope = cross_validate.fit_calibration(c, correct)
+        self.assertAlmostEqual(offset, -1.0, delta=0.1)
+        self.assertAlmostEqual(slope, 6.0, delta=0.3)
+
+    def test_lost_answers_publish_zero(self):
+        p = cross_validate.calibrated([0.0, 0.5], [False, True], -1.0, 4.0)
+        self.assertAlmostEqual(p[0], 1.0 / (1.0 + np.exp(1.0)))
+        self.assertEqual(p[1], 0.0)
+
+
+class SelectionTest(unittest.TestCase):
+    def test_each_fold_is_chosen_on_the_others(self):
+        # a is best on folds 0 and 1, b on fold 2; held out fold 2, a wins on folds 0-1 (0.9 vs 0.5);
+        # held out fold 0, folds 1-2 give a 0.55 and b 0.7: b
+        scores = {"a": {0: 0.9, 1: 0.9, 2: 0.2}, "b": {0: 0.5, 1: 0.5, 2: 0.9}}
+        self.assertEqual(cross_validate.choose(scores, [0, 1, 2], 2)[0], "a")
+        self.assertEqual(cross_validate.choose(scores, [0, 1, 2], 0)[0], "b")
+        self.assertAlmostEqual(cross_validate.choose(scores, [0, 1, 2], 0)[1], 0.7)
+
+    def test_candidates_file(self):
+        candidates = cross_validate.parse_candidates("# comment\nfast: max_step=3 ring_buffer_rows=20\n\nslow: max_step=1\n")
+        self.assertEqual(candidates, [("defaults", []), ("fast", ["max_step=3", "ring_buffer_rows=20"]),
+                                      ("slow", ["max_step=1"])])
+        with self.assertRaises(ValueError):
+            cross_validate.parse_candidates("fast max_step=3\n")
+        with self.assertRaises(ValueError):
+            cross_validate.parse_candidates("a: x=1\na: y=2\n")
+        with self.assertRaises(ValueError):
+            cross_validate.parse_candidates("a: novalue\n")
+
+
+if __name__ == "__main__":
+    unittest.main()
