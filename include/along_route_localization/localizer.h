@@ -155,6 +155,13 @@ struct LocalizerParams
   /// Per-row cost margin that maps to confidence 1 - 1/e (over a full window of K rows; the reported
   /// confidence weighs the margin by the distinct views among the rows / K, Localizer::process).
   float confidence_scale = 0.5f;
+  /// Step 5: the published confidence is the probability that the answer is within one keyframe of the
+  /// true one, sigma(calibration_offset + calibration_slope * c), c being the margin confidence above
+  /// (calibratedConfidence; a logistic fit, Platt scaling). scripts/cross_validate fits both on real
+  /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
+  /// of your own. calibration_slope 0: publish c itself. A lost track's dead-reckoned answer has 0.
+  float calibration_offset = 0.0f;
+  float calibration_slope = 0.0f;
   /// Lost (global search again) when lost_after_frames of the last lost_window_frames informative
   /// frames were low-confidence (LossDetector). Featureless frames do not count, nor do copies of the
   /// last view (the camera standing still): they bring no evidence of another place, and a long stop at
@@ -162,6 +169,16 @@ struct LocalizerParams
   /// Nordland stop-and-go, seed 2: within one frame 0.845 -> 0.863).
   int lost_after_frames = 6;
   int lost_window_frames = 8;
+  /// Weak evidence is not contrary evidence: when the loss detection fires, the last relocalization_rows
+  /// frames are compared with the whole map as a sequence (trackContradicted), and the track is lost only
+  /// when they support another place, confidently, better than the tracked one. Otherwise (snow, fog, a
+  /// featureless plain: the images neither confirm nor contradict the track) the track goes on, with the
+  /// low confidence the images give it, its answer dead-reckoned at the cruise speed from the last
+  /// confident one until a frame is confident again. Off: every loss detection loses the track.
+  bool loss_needs_contradiction = true;
+  /// While lost, answer with the dead-reckoned keyframe (the last tracked one, moved on at the cruise speed
+  /// since the loss) with confidence 0, never the unconfirmed guess of the global search. Off: the guess.
+  bool dead_reckon_while_lost = true;
   int end_of_route_keyframes = 2;     ///< a match this close to the last keyframe reports kEndOfRoute
   /// A gap in the frames' stamps (FrameClock) is frames the camera missed: they go through skipFrames
   /// before the frame after the gap. Off for a camera triggered by distance travelled, whose gaps are stops.
@@ -223,6 +240,10 @@ struct FrameGapCounts
 /// Homing angle from an image shift: a scene displaced d px to the right means the camera yawed left,
 /// so the correction is a right turn: angle = -atan(d / f), with f = (width / 2) / tan(hfov / 2) px.
 double homingAngleFromShift(double shift_px, int image_width, double horizontal_fov_rad);
+
+/// The probability of being within one keyframe for a margin confidence c in [0, 1]:
+/// 1 / (1 + exp(-(offset + slope * c))); c itself when slope is 0 (no calibration).
+double calibratedConfidence(double c, float offset, float slope);
 
 /// Keyframes per frame of a DTW path (keyframe per row, oldest first) over its rows before the newest
 /// (the newest row's end is the least settled): the mean over those rows, or, when the robot changed
@@ -335,7 +356,29 @@ private:
 
   /// Appends the eq. 2 row of keyframes [first, first + width); `global`: a global search (coarse on big maps).
   void computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query, bool global,
-                  int first, int width);
+                  int first, int width, CostRingBuffer* target = nullptr);
+  /// The loss detection fired on the track at `track_keyframe`: whether the last relocalization_rows frames
+  /// (recent_queries_, this one the newest), compared with the whole map as a sequence, end at another
+  /// place (farther than the exclusion radius, in runs) that is confidently better than every other place
+  /// and than the track's end ([track - exclusion_radius, track + max_step + max_jump_ahead]) by a margin
+  /// mapping to at least confidence_threshold (matchConfidence, the evidence being the distinct views
+  /// among those rows over their number). Weak evidence (no place stands out) is not contrary evidence.
+  /// go_on: the check of the last frame goes on (only this frame's row is new), else it starts afresh.
+  bool trackContradicted(int track_keyframe, bool go_on);
+  /// How much cheaper per row, by chance, the best path at a wrong place of this map is than a stretch of
+  /// track-sized ends at another wrong place, over `rows` rows: measured once per map and parameters on
+  /// kChanceWindows stretches of the map's own keyframes taken as queries, their true places left out (the
+  /// largest margin seen). trackContradicted needs more than this.
+  float chanceMargin(int rows);
+  static constexpr int kChanceWindows = 20;
+  /// Status lost from the track at `track_keyframe`: the ring buffer is cleared (its rows covered only the
+  /// track's band) and the dead-reckoned answer starts there (dead_reckon_while_lost).
+  void loseTrack(int track_keyframe);
+  /// The checks while coasting confirmed `keyframe`, another place: the track moves there, the check's
+  /// whole-map rows becoming the ring buffer's.
+  void moveTrackTo(int keyframe);
+  /// Keyframes per frame dead reckoning moves on at: the cruise speed, in [0, max_step].
+  double coastSpeed() const;
 
   std::shared_ptr<const RouteMap> map_;
   LocalizerParams params_;
@@ -392,6 +435,17 @@ private:
   std::vector<RecentQuery> recent_queries_;
   int recent_count_ = 0, recent_next_ = 0;
   bool relocalize_from_recent_ = false;  // set on a loss: the next global search replays recent_queries_
+  CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
+  int chance_rows_ = -1;                 // rows chance_margin_ was measured for (-1: not yet)
+  float chance_margin_ = 0.0f;
+  bool coasting_ = false;                // weak evidence: answering the dead-reckoned coast_position_
+  int contradicting_place_ = -1;         // the place the last trackContradicted found
+  GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed
+  double coast_position_ = 0.0;
+  int last_confident_ = -1;              // the last confident, informative answer while tracking
+  int frames_since_confident_ = 0;
+  double lost_position_ = -1.0;          // dead-reckoned keyframe while lost (< 0: none, no track to go on)
+  double lost_speed_ = 0.0;              // keyframes per frame it moves on at: the cruise speed at the loss
 };
 
 }  // namespace along_route_localization

@@ -110,6 +110,9 @@ std::string LocalizerParams::validate() const
     e << "confidence_threshold must be in [0, 1], got " << confidence_threshold;
   else if (!(confidence_scale > 0.0f) || !std::isfinite(confidence_scale))
     e << "confidence_scale must be finite and > 0, got " << confidence_scale;
+  else if (!(std::abs(calibration_offset) <= 50.0f) || !(calibration_slope >= 0.0f && calibration_slope <= 1000.0f))
+    e << "calibration_offset must be in [-50, 50] and calibration_slope in [0, 1000] (0: no calibration), got "
+      << calibration_offset << " and " << calibration_slope;
   else if (init_confirm_frames < 1 || init_confirm_frames > 10000)
     e << "init_confirm_frames must be in [1, 10000], got " << init_confirm_frames;
   else if (lost_window_frames > 10000)  // the dynamic_reconfigure range
@@ -179,6 +182,13 @@ double homingAngleFromShift(double shift_px, int image_width, double horizontal_
   return -std::atan(shift_px / focal_px);
 }
 
+double calibratedConfidence(double c, float offset, float slope)
+{
+  if (slope == 0.0f)
+    return c;
+  return 1.0 / (1.0 + std::exp(-(static_cast<double>(offset) + static_cast<double>(slope) * c)));
+}
+
 double pathSpeed(const std::vector<int>& path)
 {
   const int last = static_cast<int>(path.size()) - 2;  // the row before the newest
@@ -223,6 +233,10 @@ void Localizer::start()
 {
   status_ = LocalizationStatus::kInitializing;
   last_match_ = -1;
+  lost_position_ = -1.0;
+  coasting_ = false;
+  last_confident_ = -1;
+  frames_since_confident_ = 0;
   start_check_ = false;
   rows_since_start_ = views_since_start_ = 0;
   if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
@@ -249,6 +263,7 @@ void Localizer::setParams(const LocalizerParams& params)
   params_ = params;
   dtw_.setParams(params_.dtw);
   confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
+  check_confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
   loss_.configure(params_.lost_after_frames, params_.lost_window_frames);
   const int rows = std::max(params_.ring_buffer_rows,
                             params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : 0);
@@ -301,6 +316,7 @@ void Localizer::setParams(const LocalizerParams& params)
   }
   if (comparators_changed)
     rebuildComparators();
+  chance_rows_ = -1;  // chanceMargin depends on the comparison, eq. 2 and the DTW
 }
 
 int Localizer::firstComparedRow() const
@@ -407,7 +423,7 @@ EndPrior Localizer::motionPrior(bool repeated_query) const
 }
 
 void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query,
-                           bool global, int first, int width)
+                           bool global, int first, int width, CostRingBuffer* target)
 {
   float* costs = raw_costs_.data() + first;
   float* shifts = shifts_.data() + first;
@@ -458,7 +474,7 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
   // output is zero-mean), so dark stretches neither attract nor repel the path.
   for (int k = 0; k < width; ++k)
     mask_[k] = query_informative && keyframe_informative_[first + k];
-  float* row = ring_.appendRow(first, width, repeated_query);
+  float* row = (target ? *target : ring_).appendRow(first, width, repeated_query);
   const float peak = enhanceContrastRuns(
       costs, mask_.data(), stationary_change_ > 0.0f ? keyframe_repeats_.data() + first : nullptr, width,
       params_.contrast_window, params_.contrast_min_std, params_.contrast_clamp, 0.0f, row, &contrast_scratch_);
@@ -471,6 +487,8 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
     for (int k = 0; k < width; ++k)
       row[k] *= weight;
   }
+  if (target && target != &ring_)
+    return;
   newest_first_ = first;
   newest_width_ = width;
 }
@@ -545,7 +563,12 @@ void Localizer::skipFrames(int count)
     if (params_.method == SequenceMethod::kSeqSlam)
       status_ = LocalizationStatus::kInitializing;
     else if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
+    {
       status_ = LocalizationStatus::kLost;
+      lost_position_ = std::min(static_cast<double>(map_->size() - 1),
+                                std::max(0, last_match_) + cruise_speed_ * count);
+      lost_speed_ = std::min(static_cast<double>(params_.dtw.max_step), cruise_speed_);
+    }
     ring_.clear();
     start_check_ = false;
     confirmation_.clear();
@@ -715,8 +738,11 @@ LocalizationResult Localizer::step(const uint8_t* query)
   const double evidence = evidenceShare(match);
   result.confidence = matchConfidence(match, false, evidence);
   result.keyframe = match.keyframe;
+  result.confidence = calibratedConfidence(result.confidence, params_.calibration_offset, params_.calibration_slope);
 
   const bool confident = matchConfidence(match, true, 1.0) >= params_.confidence_threshold;
+  bool replayed_whole_map = false;  // trackContradicted compared this query with the whole map (coarse on big maps)
+  bool moved_track = false;         // the checks confirmed another place: the track moved there
   const bool confirmable = matchConfidence(match, true, evidence) >= params_.confidence_threshold;
   if (params_.method == SequenceMethod::kSeqSlam)
   {
@@ -734,14 +760,55 @@ LocalizationResult Localizer::step(const uint8_t* query)
       loss_.clear();
     }
   }
-  else if (loss_.update(confident, result.query_informative && !repeated_query))  // new views only
+  else
   {
-    status_ = LocalizationStatus::kLost;
-    ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
-    start_check_ = false;
-    confirmation_.clear();
-    relocalize_from_recent_ = true;
-    loss_.clear();
+    if (confident && result.query_informative)
+    {
+      coasting_ = false;  // evidence again: the DTW's answer
+      last_confident_ = match.keyframe;
+      frames_since_confident_ = 0;
+    }
+    else
+      ++frames_since_confident_;
+    if (loss_.update(confident, result.query_informative && !repeated_query))  // new views only
+    {
+      replayed_whole_map = params_.loss_needs_contradiction;
+      const int track = coasting_ ? static_cast<int>(std::lround(coast_position_)) : match.keyframe;
+      if (!params_.loss_needs_contradiction || trackContradicted(track, coasting_))
+        loseTrack(track);
+      else if (!coasting_ && last_confident_ >= 0)
+      {
+        // Weak evidence: the robot moved on at its cruise speed since the last confident answer.
+        coasting_ = true;
+        check_confirmation_.clear();
+        coast_position_ = last_confident_ + coastSpeed() * (frames_since_confident_ - 1);
+      }
+      loss_.clear();  // the detection counts afresh
+    }
+    else if (coasting_ && query)
+    {
+      // Weak evidence goes on: each new frame may bring the evidence of another place. Checked every frame,
+      // a wrong place beats the chance margin now and then, so the track moves only once init_confirm_frames
+      // checks in a row were contradicted by places that move along the route like the robot can.
+      replayed_whole_map = true;
+      const bool contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), true);
+      if (check_confirmation_.update(contradicted ? contradicting_place_ : -1, contradicted, result.query_informative))
+      {
+        moveTrackTo(contradicting_place_);
+        match.keyframe = contradicting_place_;
+        result.keyframe = contradicting_place_;
+        moved_track = true;
+      }
+    }
+    if (coasting_ && status_ != LocalizationStatus::kLost)
+    {
+      // A query that repeats the last view: the camera stood still, and so does the dead reckoning.
+      if (!repeated_query)
+        coast_position_ = std::min(static_cast<double>(n - 1), coast_position_ + coastSpeed());
+      match.keyframe = static_cast<int>(std::lround(coast_position_));
+      result.keyframe = match.keyframe;
+      run_position_ = -1.0;
+    }
   }
   if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
   {
@@ -749,7 +816,8 @@ LocalizationResult Localizer::step(const uint8_t* query)
     // relocalization's jump is not a step; a featureless frame's answer is dead reckoning). Their mean,
     // with the nominal speed as the first sample, until cruise_speed_frames samples; then a moving
     // average over that many.
-    if (tracking && !first_from_start && !left_start && result.query_informative && params_.cruise_speed_frames > 0)
+    if (tracking && !first_from_start && !left_start && !moved_track && result.query_informative &&
+        params_.cruise_speed_frames > 0)
     {
       const double step = std::min(std::max(match.keyframe - last_match_, 0), params_.dtw.max_step);
       cruise_samples_ = std::min(cruise_samples_ + 1, params_.cruise_speed_frames);
@@ -760,17 +828,152 @@ LocalizationResult Localizer::step(const uint8_t* query)
     status_ = match.keyframe >= n - 1 - params_.end_of_route_keyframes ? LocalizationStatus::kEndOfRoute :
                                                                           LocalizationStatus::kTracking;
   }
+  // Lost (contradicted): the answer is where the robot went at the cruise speed since, with confidence 0,
+  // until the global search confirms a place (the frame that confirms it answers there).
+  if (status_ == LocalizationStatus::kLost && lost_position_ >= 0.0 && params_.dead_reckon_while_lost)
+  {
+    lost_position_ = std::min(static_cast<double>(n - 1), lost_position_ + lost_speed_);
+    result.keyframe = static_cast<int>(std::lround(lost_position_));
+    result.confidence = 0.0;
+  }
   result.status = status_;
   if (result.keyframe >= 0)
   {
     result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
-    if ((global || checking_start) && coarse_difference_ && result.query_informative)  // no full-size shift in a coarse row
+    if ((global || checking_start || replayed_whole_map) && coarse_difference_ && result.query_informative)  // no full-size shift in a coarse row
       result.shift_px = difference_->compare(query, map_->keyframe(result.keyframe)).shift_px;
     else if (result.keyframe >= newest_first_ && result.keyframe < newest_first_ + newest_width_)
       result.shift_px = shifts_[result.keyframe];
     result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
   }
   return result;
+}
+
+double Localizer::coastSpeed() const
+{
+  return std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, cruise_speed_));
+}
+
+void Localizer::loseTrack(int track_keyframe)
+{
+  coasting_ = false;
+  status_ = LocalizationStatus::kLost;
+  ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
+  start_check_ = false;
+  confirmation_.clear();
+  relocalize_from_recent_ = true;
+  lost_position_ = track_keyframe;
+  lost_speed_ = coastSpeed();
+}
+
+bool Localizer::trackContradicted(int track_keyframe, bool go_on)
+{
+  const int n = static_cast<int>(map_->size());
+  const int capacity = static_cast<int>(recent_queries_.size());
+  const int window = std::min(capacity, params_.ring_buffer_rows);
+  if (window < 2 || recent_count_ < 2)
+    return true;  // nothing to weigh: as without the check
+  if (go_on && check_ring_.size() > 0 && check_ring_.capacity() == window && check_ring_.maxWidth() == n)
+  {
+    // The check goes on (weak evidence, coasting): only the newest frame's whole-map row is new.
+    const RecentQuery& newest = recent_queries_[(recent_next_ - 1 + capacity) % capacity];
+    computeRow(newest.image.data(), newest.energy, newest.informative, newest.repeated, true, 0, n, &check_ring_);
+  }
+  else
+  {
+    if (check_ring_.capacity() != window || check_ring_.maxWidth() != n)
+      check_ring_.resize(window, n);
+    check_ring_.clear();
+    for (int i = recent_count_ - std::min(recent_count_, window); i < recent_count_; ++i)
+    {
+      const RecentQuery& recent = recent_queries_[(recent_next_ - recent_count_ + i + capacity) % capacity];
+      computeRow(recent.image.data(), recent.energy, recent.informative, recent.repeated, true, 0, n, &check_ring_);
+    }
+  }
+  const int rows = check_ring_.size();
+  const SequenceMatch elsewhere = dtw_.match(check_ring_, 0, n, rows, false, keyframe_run_.data());
+  if (elsewhere.keyframe < 0 ||
+      std::abs(keyframe_run_[elsewhere.keyframe] - keyframe_run_[track_keyframe]) <= params_.dtw.exclusion_radius)
+    return false;  // the sequence still ends at the track's place
+  const double evidence =
+      static_cast<double>(check_ring_.distinctViews(elsewhere.rows)) / std::max(1, elsewhere.rows);
+  if (matchConfidence(elsewhere, true, evidence) < params_.confidence_threshold)
+    return false;  // no place stands out: weak evidence
+  // The track's own end over the same rows, as the track may choose it.
+  const std::vector<float>& accumulated = dtw_.lastAccumulated();
+  const int lo = std::max(0, track_keyframe - params_.dtw.exclusion_radius);
+  const int hi = std::min(n - 1, track_keyframe + params_.dtw.max_step + params_.max_jump_ahead);
+  float track_cost = std::numeric_limits<float>::infinity();
+  for (int k = lo; k <= hi; ++k)
+    track_cost = std::min(track_cost, accumulated[k]);
+  // Better than the track by more than a wrong stretch of this map is by chance (chanceMargin; it uses
+  // the DTW too, so it comes after this check's own costs were read).
+  const float margin = track_cost - elsewhere.cost;
+  contradicting_place_ = elsewhere.keyframe;
+  return margin > chanceMargin(rows);
+}
+
+void Localizer::moveTrackTo(int keyframe)
+{
+  // The check's whole-map rows become the window (they cover any band); the track starts afresh there.
+  ring_.clear();
+  const int n = static_cast<int>(map_->size());
+  for (int age = check_ring_.size() - 1; age >= 0; --age)
+  {
+    float* row = ring_.appendRow(0, n, check_ring_.repeatedQuery(age));
+    for (int k = 0; k < n; ++k)
+      row[k] = check_ring_.at(age, k, 0.0f);
+  }
+  newest_first_ = 0;
+  newest_width_ = n;
+  last_match_ = keyframe;
+  last_path_.clear();
+  run_position_ = -1.0;
+  tracked_frames_ = 0;
+  coasting_ = false;
+  last_confident_ = -1;
+  check_confirmation_.clear();
+  loss_.clear();
+}
+
+float Localizer::chanceMargin(int rows)
+{
+  if (chance_rows_ == rows)
+    return chance_margin_;
+  // Stretches of this map's own keyframes are the queries, and their true places are left out: the
+  // cheapest path at a wrong place then beats the track-sized stretch of ends at another wrong place by
+  // the chance margin of this map. Sampled at kChanceWindows evenly spaced stretches, the largest kept.
+  const int n = static_cast<int>(map_->size());
+  const int window = params_.dtw.exclusion_radius + params_.dtw.max_step + params_.max_jump_ahead + 1;
+  const int reach = params_.contrast_window + params_.dtw.exclusion_radius + rows * params_.dtw.max_step;
+  CostRingBuffer ring(rows, n);  // once per map and parameters: no need to keep it
+  float largest = 0.0f;
+  for (int sample = 0; sample < kChanceWindows && n > rows; ++sample)
+  {
+    const int a = static_cast<int>(static_cast<int64_t>(sample) * (n - rows) / kChanceWindows);
+    ring.clear();
+    for (int i = 0; i < rows; ++i)
+      computeRow(map_->keyframe(a + i), map_->energy(a + i), keyframe_informative_[a + i] != 0, false, true, 0, n,
+                 &ring);
+    dtw_.match(ring, 0, n, rows, false, keyframe_run_.data());
+    const std::vector<float>& accumulated = dtw_.lastAccumulated();
+    const int lo = a - reach, hi = a + rows - 1 + reach;  // the stretch's true place, and what eq. 2 spread of it
+    float best_wrong = std::numeric_limits<float>::infinity();
+    for (int k = 0; k < n; ++k)
+      if (k < lo || k > hi)
+        best_wrong = std::min(best_wrong, accumulated[k]);
+    // A track-sized stretch of ends at another wrong place, halfway round the map from this one.
+    const int start = ((a + n / 2) % n);
+    float track_wrong = std::numeric_limits<float>::infinity();
+    for (int k = start; k < std::min(n, start + window); ++k)
+      if (k < lo || k > hi)
+        track_wrong = std::min(track_wrong, accumulated[k]);
+    if (std::isfinite(best_wrong) && std::isfinite(track_wrong))
+      largest = std::max(largest, track_wrong - best_wrong);
+  }
+  chance_rows_ = rows;
+  chance_margin_ = largest;
+  return chance_margin_;
 }
 
 double Localizer::evidenceShare(const SequenceMatch& match) const
