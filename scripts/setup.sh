@@ -28,7 +28,10 @@ export PATH="/usr/bin:$PATH"
 
 run() { if $dry_run; then echo "setup: would run: $*"; else "$@"; fi; }
 as_root() { if [ "$(id -u)" -eq 0 ]; then run "$@"; else run sudo "$@"; fi; }
-apt_install() { as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@"; }
+apt_install() {  # dpkg's lines are dropped (not apt's errors)
+  if $dry_run; then as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@"
+  else as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@" >/dev/null; fi
+}
 
 os_field() {  # os_field NAME: a field of os-release, unquoted ("" when missing)
   sed -n "s/^$1=//p" "$os_release" | head -n 1 | tr -d '"'"'"
