@@ -600,26 +600,26 @@ void LocalizerNodelet::publishDebugImage(const std_msgs::Header& header, const L
   content.cost_clamp = params_.contrast_clamp;
   content.cell_px = debug_image_scale_;
   // Drawn straight into the message's buffer (a viewer's size: debug_image.h).
-  const DebugImageLayout layout = debugImageLayout(content, localizer_->costs().capacity());
   const sensor_msgs::ImagePtr out = boost::make_shared<sensor_msgs::Image>();
-  out->header = header;
-  out->encoding = sensor_msgs::image_encodings::BGR8;
-  out->width = static_cast<uint32_t>(layout.size.width);
-  out->height = static_cast<uint32_t>(layout.size.height);
-  out->step = out->width * 3;
-  out->data.resize(static_cast<size_t>(out->step) * out->height);
-  cv::Mat wrapped(layout.size, CV_8UC3, &out->data[0], out->step);
   try
   {
+    const DebugImageLayout layout = debugImageLayout(content, localizer_->costs().capacity());
+    out->header = header;
+    out->encoding = sensor_msgs::image_encodings::BGR8;
+    out->width = static_cast<uint32_t>(layout.size.width);
+    out->height = static_cast<uint32_t>(layout.size.height);
+    out->step = out->width * 3;
+    out->data.resize(static_cast<size_t>(out->step) * out->height);
+    cv::Mat wrapped(layout.size, CV_8UC3, &out->data[0], out->step);
     renderDebugImage(localizer_->costs(), content, wrapped);
+    if (wrapped.data != &out->data[0])
+      return;  // not drawn in place (cannot happen with the layout's size)
   }
   catch (const std::exception& e)
   {
     NODELET_ERROR_THROTTLE(5.0, "Cannot render the debug image: %s", e.what());
     return;
   }
-  if (wrapped.data != &out->data[0])
-    return;  // not drawn in place (cannot happen with the layout's size)
   debug_pub_.publish(out);
 }
 
