@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs the package under the sanitizers and fuzzes its input paths:
-#   scripts/run_sanitizers.sh [WORKDIR]        default WORKDIR: /tmp/along_route_sanitizers
+# usage: scripts/run_sanitizers.sh [WORKDIR]        default WORKDIR: /tmp/along_route_sanitizers
 #
 #  1. ASan + UBSan: test_core and test_map_io built in WORKDIR/ws_asan (leaks checked).
 #  2. TSan: test_core, test_map_io, and two drivers for the threaded parts, built in WORKDIR/ws_tsan:
@@ -13,6 +13,10 @@
 # Build directories are kept in WORKDIR and reused. Suppressions (third-party code only) are in
 # test/sanitizers/. Exit status 0 only when every check passed with no sanitizer report; the last line
 # is "sanitizers: N passed, M failed".
+case "${1:-}" in  # --help prints the comment above; another "-..." is refused before anything is done
+  -h | --help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "${BASH_SOURCE[0]}"; exit 0 ;;
+  -*) echo "run_sanitizers.sh: unknown option '$1' (see run_sanitizers.sh --help)" >&2; exit 2 ;;
+esac
 set -uo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"

@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
 # Builds the package with its tests and runs them all: core gtests, rostests (real roscore, nodelet
 # manager, launch files and rosbag play), launch-file checks and the Python tool tests.
-#   scripts/run_tests.sh [WORKSPACE]     default WORKSPACE: $HOME/along_route_ws (built by scripts/setup.sh)
+# usage: scripts/run_tests.sh [WORKSPACE]     default WORKSPACE: $HOME/along_route_ws (built by scripts/setup.sh)
 # Exit status 0 only when every test passed. Real Nordland frames are read from ../shared/data/nordland
 # beside this repository when present; the tests that need them skip with a message otherwise.
+case "${1:-}" in  # --help prints the comment above; another "-..." is refused before anything is done
+  -h | --help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "${BASH_SOURCE[0]}"; exit 0 ;;
+  -*) echo "run_tests.sh: unknown option '$1' (see run_tests.sh --help)" >&2; exit 2 ;;
+esac
 set -uo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"

@@ -306,8 +306,8 @@ public:
   /// Whether global searches compare halved images on this map (coarse_search_keyframes).
   bool coarseGlobalSearch() const { return coarse_difference_ != nullptr; }
 
-  /// The paper's figure 4: ring buffer (rows = frames, newest at the bottom; columns = keyframes of
-  /// [first, first + width)) as a gray image, dark = low cost, with the current path in red. BGR8.
+  /// The paper's figure 4 (debug_image.h) for keyframes [first, first + width), scale px per cell, with
+  /// the last path, match and status (no confidence: the localizer nodelet renders with its result's). BGR8.
   cv::Mat renderDebugImage(int first_keyframe, int width, int scale = 4) const;
 
 private:

@@ -1,4 +1,5 @@
 #include "along_route_localization/localizer.h"
+#include "along_route_localization/debug_image.h"
 
 #include <algorithm>
 #include <cmath>
@@ -1010,32 +1011,16 @@ bool Localizer::startRefuted(const SequenceMatch& track, bool informative, Seque
 
 cv::Mat Localizer::renderDebugImage(int first_keyframe, int width, int scale) const
 {
-  const int rows = std::max(1, ring_.size());
-  width = std::max(1, width);
-  scale = std::max(1, scale);
-  cv::Mat small(rows, width, CV_8UC3, cv::Scalar(80, 0, 0));  // dark blue: not computed
-  const float clamp = params_.contrast_clamp;
-  for (int age = 0; age < ring_.size(); ++age)
-  {
-    cv::Vec3b* out = small.ptr<cv::Vec3b>(rows - 1 - age);  // newest at the bottom
-    for (int x = 0; x < width; ++x)
-    {
-      const float c = ring_.at(age, first_keyframe + x, std::nanf(""));
-      if (std::isnan(c))
-        continue;
-      const uint8_t gray = cv::saturate_cast<uint8_t>(127.5f + 127.5f * c / clamp);
-      out[x] = cv::Vec3b(gray, gray, gray);
-    }
-  }
-  for (size_t r = 0; r < last_path_.size(); ++r)
-  {
-    const int x = last_path_[r] - first_keyframe;
-    const int y = rows - static_cast<int>(last_path_.size()) + static_cast<int>(r);
-    if (x >= 0 && x < width && y >= 0)
-      small.at<cv::Vec3b>(y, x) = cv::Vec3b(0, 0, 255);
-  }
+  DebugImageContent content;
+  content.first_keyframe = first_keyframe;
+  content.keyframes = std::max(1, width);
+  content.path = last_path_;
+  content.match_keyframe = last_match_;
+  content.status = toString(status_);
+  content.cost_clamp = params_.contrast_clamp;
+  content.cell_px = std::max(1, scale);
   cv::Mat image;
-  cv::resize(small, image, cv::Size(width * scale, rows * scale), 0.0, 0.0, cv::INTER_NEAREST);
+  along_route_localization::renderDebugImage(ring_, content, image);
   return image;
 }
 

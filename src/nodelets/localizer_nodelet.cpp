@@ -4,10 +4,10 @@
 //             <namespace of image_preprocessed>/preprocessing_params (latched, from the preprocessor):
 //             a map made with other parameters is refused
 // Publishes:  localization (along_route_localization/Localization, header copied from the image)
-//             localization_debug_image (bgr8, only while subscribed: the ring buffer with the path)
+//             localization_debug_image (bgr8, only while subscribed: the ring buffer with the path, debug_image.h)
 //             /diagnostics (processing time per frame, rate, status, frames dropped and why)
 // Services:   ~load_map (along_route_localization/LoadMap)
-// Parameters: ~map (path, loaded at start), ~debug_image_scale (4), ~min_rate / ~max_rate (Hz,
+// Parameters: ~map (path, loaded at start), ~debug_image_scale (8), ~min_rate / ~max_rate (Hz,
 //             expected input rate for diagnostics); cfg/Localizer.cfg (dynamic, applied between
 //             frames); any other core parameter by its parameters.h name (static, e.g. ~cost_function)
 #include <algorithm>
@@ -34,6 +34,7 @@
 #include "along_route_localization/LoadMap.h"
 #include "along_route_localization/Localization.h"
 #include "along_route_localization/LocalizerConfig.h"
+#include "along_route_localization/debug_image.h"
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/parameters.h"
 #include "ros/diagnostics.h"
@@ -57,7 +58,7 @@ private:
   LocalizerParams staticParams(const ros::NodeHandle& private_nh);
   void warnAboutUnreadParameters(const ros::NodeHandle& private_nh);
   LocalizerParams effectiveParams(const LocalizerParams& requested) const;
-  void publishDebugImage(const std_msgs::Header& header, int keyframe);
+  void publishDebugImage(const std_msgs::Header& header, const LocalizationResult& result);
   /// Kinds of reason not to localize a frame (DroppedFrames logs each kind apart).
   enum Drop
   {
@@ -72,7 +73,7 @@ private:
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
   // Static parameters, read in onInit.
-  int debug_image_scale_ = 4;
+  int debug_image_scale_ = 8;
   double min_rate_hz_ = 1.0, max_rate_hz_ = 1000.0;
 
   std::shared_ptr<image_transport::ImageTransport> it_;
@@ -246,8 +247,8 @@ void LocalizerNodelet::onInit()
   private_nh.param("debug_image_scale", debug_image_scale_, debug_image_scale_);
   if (debug_image_scale_ < 1 || debug_image_scale_ > 64)
   {
-    NODELET_ERROR("~debug_image_scale must be 1 to 64 (%d); using 4", debug_image_scale_);
-    debug_image_scale_ = 4;
+    NODELET_ERROR("~debug_image_scale must be 1 to 64 (%d); using 8", debug_image_scale_);
+    debug_image_scale_ = 8;
   }
   private_nh.param("min_rate", min_rate_hz_, min_rate_hz_);
   private_nh.param("max_rate", max_rate_hz_, max_rate_hz_);
@@ -570,7 +571,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   localization_pub_.publish(out);
 
   if (debug_pub_.getNumSubscribers() > 0)
-    publishDebugImage(msg->header, result.keyframe);
+    publishDebugImage(msg->header, result);
 
   last_result_ = result;
   dropped_.used();
@@ -584,33 +585,41 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   rate_status_->tick();
 }
 
-void LocalizerNodelet::publishDebugImage(const std_msgs::Header& header, int keyframe)
+void LocalizerNodelet::publishDebugImage(const std_msgs::Header& header, const LocalizationResult& result)
 {
   const int keyframes = static_cast<int>(map_->size());
   const int width = std::min(keyframes, 2 * std::max(params_.search_radius, 1) + 1);
-  const int center = keyframe >= 0 ? keyframe : 0;
-  const int first = std::max(0, std::min(center - width / 2, keyframes - width));
-  cv::Mat rendered;
+  const int center = result.keyframe >= 0 ? result.keyframe : 0;
+  DebugImageContent content;
+  content.first_keyframe = std::max(0, std::min(center - width / 2, keyframes - width));
+  content.keyframes = width;
+  content.path = localizer_->lastPath();
+  content.match_keyframe = result.keyframe;
+  content.status = toString(result.status);
+  content.confidence = result.confidence;
+  content.cost_clamp = params_.contrast_clamp;
+  content.cell_px = debug_image_scale_;
+  // Drawn straight into the message's buffer (a viewer's size: debug_image.h).
+  const sensor_msgs::ImagePtr out = boost::make_shared<sensor_msgs::Image>();
   try
   {
-    rendered = localizer_->renderDebugImage(first, width, debug_image_scale_);
+    const DebugImageLayout layout = debugImageLayout(content, localizer_->costs().capacity());
+    out->header = header;
+    out->encoding = sensor_msgs::image_encodings::BGR8;
+    out->width = static_cast<uint32_t>(layout.size.width);
+    out->height = static_cast<uint32_t>(layout.size.height);
+    out->step = out->width * 3;
+    out->data.resize(static_cast<size_t>(out->step) * out->height);
+    cv::Mat wrapped(layout.size, CV_8UC3, &out->data[0], out->step);
+    renderDebugImage(localizer_->costs(), content, wrapped);
+    if (wrapped.data != &out->data[0])
+      return;  // not drawn in place (cannot happen with the layout's size)
   }
   catch (const std::exception& e)
   {
     NODELET_ERROR_THROTTLE(5.0, "Cannot render the debug image: %s", e.what());
     return;
   }
-  if (rendered.empty() || rendered.type() != CV_8UC3)
-    return;
-  const sensor_msgs::ImagePtr out = boost::make_shared<sensor_msgs::Image>();
-  out->header = header;
-  out->encoding = sensor_msgs::image_encodings::BGR8;
-  out->width = static_cast<uint32_t>(rendered.cols);
-  out->height = static_cast<uint32_t>(rendered.rows);
-  out->step = out->width * 3;
-  out->data.resize(static_cast<size_t>(out->step) * out->height);
-  cv::Mat wrapped(rendered.rows, rendered.cols, CV_8UC3, &out->data[0], out->step);
-  rendered.copyTo(wrapped);
   debug_pub_.publish(out);
 }
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <iostream>
 #include <map>
+#include <mutex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -54,8 +55,11 @@ PixelFormat formatOfDecoded(const cv::Mat& image, const std::string& file)
 }
 
 /// Reads and preprocesses files in parallel, one Preprocessor per worker.
-std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, const PreprocessingParams& params)
+std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, const PreprocessingParams& params,
+                                     const LoadProgress& progress)
 {
+  std::mutex progress_mutex;
+  size_t done = 0;  // files read, under progress_mutex
   std::vector<cv::Mat> frames(files.size());
   std::vector<std::string> errors(files.size());
   std::vector<cv::Size> enlarged(files.size());  // the size of an image smaller than the output, else empty
@@ -78,6 +82,11 @@ std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, cons
       catch (const std::exception& e)
       {
         errors[i] = files[i] + ": " + e.what();
+      }
+      if (progress)
+      {
+        std::lock_guard<std::mutex> lock(progress_mutex);
+        progress(++done, files.size());
       }
     }
   });
@@ -120,7 +129,7 @@ std::string imageTopicOf(rosbag::Bag& bag, const std::string& path, const std::s
 
 /// Preprocessed frames of an image topic, with their header stamps in ns.
 std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& topic, const PreprocessingParams& params,
-                                   std::vector<int64_t>* stamps_ns)
+                                   std::vector<int64_t>* stamps_ns, const LoadProgress& progress)
 {
   rosbag::Bag bag;
   try
@@ -191,6 +200,8 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
     }
     if (stamps_ns)
       stamps_ns->push_back(static_cast<int64_t>(msg->header.stamp.toNSec()));
+    if (progress)
+      progress(frames.size(), view.size());
   }
   if (clipped_frames > 1)
     std::cerr << "warning: '" << path << "', topic '" << image_topic << "': " << clipped_frames << " of "
@@ -257,7 +268,8 @@ std::vector<std::string> listImageFiles(const std::string& folder)
 }
 
 std::vector<cv::Mat> loadPreprocessedFrames(const std::string& path, const std::string& topic,
-                                            const PreprocessingParams& params, std::vector<int64_t>* stamps_ns)
+                                            const PreprocessingParams& params, std::vector<int64_t>* stamps_ns,
+                                            const LoadProgress& progress)
 {
   requireExists(path);
   if (stamps_ns)
@@ -269,12 +281,13 @@ std::vector<cv::Mat> loadPreprocessedFrames(const std::string& path, const std::
       throw std::runtime_error("folder '" + path + "' holds no image files");
     if (stamps_ns)
       stamps_ns->assign(files.size(), 0);
-    return preprocessFiles(files, params);
+    return preprocessFiles(files, params, progress);
   }
-  return preprocessBag(path, topic, params, stamps_ns);
+  return preprocessBag(path, topic, params, stamps_ns, progress);
 }
 
-std::shared_ptr<RouteMap> loadMapFromPath(const std::string& path, const std::string& topic, PreprocessingParams* params)
+std::shared_ptr<RouteMap> loadMapFromPath(const std::string& path, const std::string& topic, PreprocessingParams* params,
+                                          const LoadProgress& progress)
 {
   requireExists(path);
   if (!isDirectory(path))
@@ -291,13 +304,13 @@ std::shared_ptr<RouteMap> loadMapFromPath(const std::string& path, const std::st
     const std::vector<std::string> files = listImageFiles(path);
     if (files.empty())
       throw std::runtime_error("folder '" + path + "' holds no image files");
-    frames = preprocessFiles(files, *params);
+    frames = preprocessFiles(files, *params, progress);
     for (size_t i = 0; i < frames.size(); ++i)
       stamps.push_back(static_cast<int64_t>(i));
   }
   else
   {
-    frames = preprocessBag(path, topic, *params, &stamps);
+    frames = preprocessBag(path, topic, *params, &stamps, progress);
   }
   map->reserve(frames.size());
   for (size_t i = 0; i < frames.size(); ++i)

@@ -42,7 +42,7 @@ void usage(std::ostream& out)
 {
   out << "usage: localize_offline --map PATH --query PATH --output results.csv [--params params.yaml]\n"
          "                        [--method dtw|seqslam] [--topic TOPIC] [--set name=value ...]\n"
-         "                        [--save-map MAP_FILE] [--quiet]\n"
+         "                        [--save-map MAP_FILE] [--progress auto|bar|lines|off] [--quiet]\n"
          "  PATH: a folder of images (sorted by file name), a bag with an image topic, or a map file\n"
          "        written by the map recorder (its stored preprocessing parameters are used; any given\n"
          "        with --params or --set must agree with them).\n"
@@ -52,29 +52,69 @@ void usage(std::ostream& out)
          "        localizer:; map_recorder: is skipped); --set overrides one parameter. Names:\n   ";
   for (const std::string& name : alr::parameterNames())
     out << " " << name;
+  out << "\n  --progress: on stderr, while loading and localizing: a line redrawn in place (bar), a line at every"
+         "\n        10 % (lines), nothing (off); auto (default): bar on a terminal, else lines after 2 s; off with --quiet.";
   out << "\n  Output CSV columns: query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";
 }
+
+// Progress of a stage on stderr (stdout may carry the results: --output /dev/stdout). kBar: a line redrawn
+// in place, at most 10 times a second; kLines: a line at every 10 %; kAuto: kBar on a terminal, else kLines
+// once the stage has taken 2 s (a short run in a log stays quiet); kOff: nothing (--quiet).
+enum class ProgressMode
+{
+  kAuto,
+  kBar,
+  kLines,
+  kOff
+};
 
 class Progress
 {
 public:
-  Progress(const char* label, size_t total, bool enabled) : label_(label), total_(total), enabled_(enabled && isatty(2)) {}
-  void update(size_t done)
+  Progress(const char* label, ProgressMode mode) : label_(label), mode_(mode), start_(Clock::now())
   {
-    if (!enabled_ || (done != total_ && done % 64 != 0))
+    if (mode_ == ProgressMode::kAuto)
+    {
+      const bool terminal = isatty(2);
+      mode_ = terminal ? ProgressMode::kBar : ProgressMode::kLines;
+      quiet_seconds_ = terminal ? 0.0 : 2.0;
+    }
+  }
+  void update(size_t done, size_t total)
+  {
+    if (mode_ == ProgressMode::kOff || total == 0)
       return;
-    const int width = 40;
-    const int filled = total_ ? static_cast<int>(width * done / total_) : width;
-    std::fprintf(stderr, "\r%-9s [%s%s] %zu/%zu", label_, std::string(filled, '#').c_str(),
-                 std::string(width - filled, ' ').c_str(), done, total_);
-    if (done == total_)
-      std::fprintf(stderr, "\n");
+    const double elapsed = secondsSince(start_);
+    if (mode_ == ProgressMode::kBar)
+    {
+      if (done < total && drawn_ && elapsed - drawn_at_ < 0.1)
+        return;
+      drawn_ = true;
+      drawn_at_ = elapsed;
+      const int width = 30;
+      const int filled = static_cast<int>(width * done / total);
+      std::fprintf(stderr, "\rlocalize_offline: %-20s [%s%s] %zu/%zu", label_, std::string(filled, '#').c_str(),
+                   std::string(width - filled, ' ').c_str(), done, total);
+      if (done == total)
+        std::fprintf(stderr, "\n");
+      return;
+    }
+    const size_t tenths = 10 * done / total;
+    if (tenths <= tenths_ || elapsed < quiet_seconds_)
+      return;
+    tenths_ = tenths;
+    std::fprintf(stderr, "localize_offline: %s %zu/%zu (%zu %%), %.1f s\n", label_, done, total, 100 * done / total,
+                 elapsed);
   }
 
 private:
   const char* label_;
-  size_t total_;
-  bool enabled_;
+  ProgressMode mode_;
+  Clock::time_point start_;
+  double quiet_seconds_ = 0.0;
+  bool drawn_ = false;
+  double drawn_at_ = 0.0;
+  size_t tenths_ = 0;
 };
 
 // Whether two paths name the same existing file (hard links and symlinks included).
@@ -102,6 +142,8 @@ int main(int argc, char** argv)
   std::string map_path, query_path, output_path, params_path, method, topic, save_map_path;
   std::vector<std::pair<std::string, std::string>> overrides;
   bool quiet = false;
+  ProgressMode progress_mode = ProgressMode::kAuto;
+  bool progress_given = false;
   for (int i = 1; i < argc; ++i)
   {
     const std::string arg = argv[i];
@@ -140,6 +182,21 @@ int main(int argc, char** argv)
     }
     else if (arg == "--quiet")
       quiet = true;
+    else if (arg == "--progress")
+    {
+      const std::string mode = value();
+      progress_given = true;
+      if (mode == "auto" || mode == "bar" || mode == "lines" || mode == "off")
+        progress_mode = mode == "auto" ? ProgressMode::kAuto :
+                        mode == "bar"  ? ProgressMode::kBar :
+                        mode == "lines" ? ProgressMode::kLines :
+                                          ProgressMode::kOff;
+      else
+      {
+        std::cerr << "localize_offline: --progress takes auto, bar, lines or off, got '" << mode << "'\n";
+        return 2;
+      }
+    }
     else if (arg == "-h" || arg == "--help")
     {
       usage(std::cout);
@@ -152,6 +209,8 @@ int main(int argc, char** argv)
       return 2;
     }
   }
+  if (quiet && !progress_given)
+    progress_mode = ProgressMode::kOff;
   if (map_path.empty() || query_path.empty() || output_path.empty())
   {
     std::cerr << "localize_offline: --map, --query and --output are required\n";
@@ -226,7 +285,9 @@ int main(int argc, char** argv)
   {
     // A recorder map carries the preprocessing it was made with, and the queries must be preprocessed
     // the same way: preprocessing parameters given for the run must agree with it.
-    map = alr::loadMapFromPath(map_path, topic, &preprocessing);
+    Progress map_progress("loading the map", progress_mode);
+    map = alr::loadMapFromPath(map_path, topic, &preprocessing,
+                               [&](size_t done, size_t total) { map_progress.update(done, total); });
     if (map->empty())
       throw alr::MapError("the map '" + map_path + "' holds no keyframes");
     // Only the names given count: the same file and --set applied over the map's parameters (with no
@@ -244,7 +305,9 @@ int main(int argc, char** argv)
                    "--map the images to preprocess them anew\n";
       return 2;
     }
-    queries = alr::loadPreprocessedFrames(query_path, topic, preprocessing, &query_stamps);
+    Progress query_progress("loading the queries", progress_mode);
+    queries = alr::loadPreprocessedFrames(query_path, topic, preprocessing, &query_stamps,
+                                          [&](size_t done, size_t total) { query_progress.update(done, total); });
     if (queries.empty())
       throw alr::MapError("the query '" + query_path + "' holds no images");
   }
@@ -290,7 +353,7 @@ int main(int argc, char** argv)
   try
   {
     alr::Localizer localizer(map, localizer_params);
-    Progress progress("localize", queries.size(), !quiet);
+    Progress progress("localizing", progress_mode);
     char line[160];
     for (size_t q = 0; q < queries.size(); ++q)
     {
@@ -301,7 +364,7 @@ int main(int argc, char** argv)
       std::snprintf(line, sizeof(line), "%zu,%d,%.6f,%.4f,%.6f,%s\n", q, r.keyframe, r.confidence, r.shift_px,
                     r.homing_angle_rad, alr::toString(r.status).c_str());
       out << line;
-      progress.update(q + 1);
+      progress.update(q + 1, queries.size());
     }
   }
   catch (const std::exception& e)

@@ -1245,8 +1245,10 @@ TEST(Localizer, DebugImageIsBgrAndScaled)
   const cv::Mat image = localizer.renderDebugImage(0, 60, 4);
   ASSERT_FALSE(image.empty());
   EXPECT_EQ(CV_8UC3, image.type());
-  EXPECT_EQ(240, image.cols);
-  EXPECT_EQ(0, image.rows % 4);
+  // 60 keyframes x 4 px = 240 px of matrix, in an image at least 640 px wide (debug_image.h); K = 30 rows of
+  // 4 px between 76 px above and 92 px below.
+  EXPECT_EQ(640, image.cols);
+  EXPECT_EQ(76 + 30 * 4 + 92, image.rows);
 }
 
 // ---------------------------------------------------------------- real Nordland, summer map -> winter

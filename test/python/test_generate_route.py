@@ -139,10 +139,21 @@ class CommandLineTest(unittest.TestCase):
     def test_small_run(self):
         import rosbag
         out = os.path.join(self.tmp, "route")
-        with contextlib.redirect_stdout(io.StringIO()):
+        with contextlib.redirect_stdout(io.StringIO()) as stdout, contextlib.redirect_stderr(io.StringIO()) as stderr:
             code = generate_route.main(["--output", out, "--teach-frames", "40", "--width", "96", "--height", "64",
-                                        "--rate", "20", "--start-time", "50", "--seed", "3"])
+                                        "--rate", "20", "--start-time", "50", "--seed", "3", "--progress", "lines"])
         self.assertEqual(code, 0)
+        # Issue 33: silent for ~15 s. Progress on stderr (the setup's stages, then a line at every 10 % of
+        # each run); stdout holds only the summary.
+        self.assertEqual(len(stdout.getvalue().splitlines()), 1)
+        self.assertTrue(stdout.getvalue().startswith("generate_route: 40 teach frames"))
+        progress = stderr.getvalue().splitlines()
+        for stage in ("setup 1/3", "setup 2/3", "setup 3/3"):
+            self.assertTrue(any(stage in line for line in progress), progress)
+        teach = [line for line in progress if "teach frames:" in line]
+        self.assertEqual(len(teach), 10, progress)
+        self.assertTrue(teach[0].startswith("generate_route: teach frames: 4/40 (10 %)"), teach)
+        self.assertTrue(teach[-1].startswith("generate_route: teach frames: 40/40 (100 %)"), teach)
         with open(os.path.join(out, "ground_truth.csv")) as f:
             rows = list(csv.DictReader(f))
         self.assertEqual(list(rows[0].keys())[:4], ["query_index", "teach_frame", "heading_offset_rad",
@@ -162,6 +173,24 @@ class CommandLineTest(unittest.TestCase):
             self.assertAlmostEqual(t0.to_sec(), 50.0)
             self.assertAlmostEqual(messages[1][0].header.stamp.to_sec(), 50.05, places=6)
         self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
+
+    def test_progress_modes(self):
+        def run(mode, total, isatty):
+            stream = io.StringIO()
+            stream.isatty = lambda: isatty
+            progress = generate_route.Progress("x", total, mode, stream)
+            for done in range(1, total + 1):
+                progress.update(done)
+            return stream.getvalue()
+
+        self.assertEqual(run("off", 50, True), "")
+        lines = run("auto", 50, False).splitlines()  # not a terminal: lines
+        self.assertEqual([line.split(",")[0] for line in lines],
+                         ["x: %d/50 (%d %%)" % (5 * k, 10 * k) for k in range(1, 11)])
+        bar = run("auto", 50, True)  # a terminal: one line redrawn in place, ended once
+        self.assertTrue(bar.startswith("\rx ["))
+        self.assertEqual(bar.count("\n"), 1)
+        self.assertIn("50/50", bar.rsplit("\r", 1)[1])
 
     def test_bad_arguments(self):
         with contextlib.redirect_stderr(io.StringIO()):

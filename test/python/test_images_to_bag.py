@@ -100,6 +100,18 @@ class BagTest(unittest.TestCase):
             np.testing.assert_array_equal(pixels[0, 5], (202, 201, 200))
             np.testing.assert_array_equal(pixels[0, 3], (value + 1, 0, value))
 
+    def test_progress_goes_to_stderr_not_stdout(self):
+        # Issue 33: printed only at the end. A line at every 10 % (3 images: 1/3 is 33 %, ...) with
+        # --progress lines, none with off; stdout holds only the summary either way.
+        bag_path = os.path.join(self.tmp, "out.bag")
+        for mode, expected in (("lines", ["1/3 (33 %)", "2/3 (66 %)", "3/3 (100 %)"]), ("off", [])):
+            with self.subTest(mode=mode), contextlib.redirect_stdout(io.StringIO()) as out, \
+                    contextlib.redirect_stderr(io.StringIO()) as err:
+                self.assertEqual(images_to_bag.main([self.folder, bag_path, "--progress", mode]), 0)
+            self.assertEqual([line.split(": ")[1].split(",")[0] for line in err.getvalue().splitlines()], expected)
+            self.assertEqual(len(out.getvalue().splitlines()), 1)
+            self.assertTrue(out.getvalue().startswith("images_to_bag: wrote 3 images"))
+
     def test_mono_and_frame_selection(self):
         bag_path = os.path.join(self.tmp, "mono.bag")
         with contextlib.redirect_stdout(io.StringIO()):

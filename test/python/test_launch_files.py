@@ -72,5 +72,29 @@ class LaunchFileTest(unittest.TestCase):
                     self.assertEqual(default, roslaunch('--dump-params', path, 'params_file:=none'))
 
 
+def package_found():
+    rospack = shutil.which('rospack', path='/usr/bin:' + os.environ.get('PATH', ''))
+    return rospack is not None and subprocess.run([rospack, 'find', 'along_route_localization'], stdout=subprocess.PIPE,
+                                                  stderr=subprocess.PIPE).returncode == 0
+
+
+@unittest.skipIf(ROSLAUNCH is None, 'roslaunch not installed')
+class DemoLaunchTest(unittest.TestCase):
+    def test_view_starts_viewers_that_exist(self):
+        # Issue 33: view:=true named image_view/image_view, which roslaunch cannot launch on Debian.
+        if not package_found():
+            self.skipTest('along_route_localization is not on ROS_PACKAGE_PATH (source the workspace)')
+        path = os.path.join(LAUNCH_DIR, 'demo.launch')
+        nodes = roslaunch('--nodes', path, 'view:=true').split()
+        self.assertIn('/camera_view', nodes)
+        self.assertIn('/debug_view', nodes)
+        self.assertNotIn('/camera_view', roslaunch('--nodes', path).split())
+        for node, topic in (('camera_view', '/camera/image_raw'), ('debug_view', '/localization_debug_image')):
+            with self.subTest(node=node):
+                command = roslaunch('--args', node, path, 'view:=true').split()
+                self.assertTrue(os.access(command[0], os.X_OK), command)  # roslaunch found the program
+                self.assertIn('image:=' + topic, command)
+
+
 if __name__ == '__main__':
     unittest.main()

@@ -90,6 +90,23 @@ class LocalizeOfflineTest(unittest.TestCase):
         for r in rows:
             self.assertTrue(0.0 <= float(r['confidence']) <= 1.0)
 
+    def test_progress_goes_to_stderr_and_the_results_to_stdout(self):
+        # Issue 33: it printed only at the end. With --progress lines (forced: a short run in a log stays
+        # quiet by default) a line at every 10 % of each stage on stderr; the CSV on stdout is untouched.
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', '/dev/stdout',
+                                 '--progress', 'lines')
+        self.assertEqual(result.returncode, 0, result.stderr)
+        rows = list(csv.DictReader(result.stdout.splitlines()))
+        self.assertEqual([int(r['query_index']) for r in rows], list(range(40)))
+        for stage in ('loading the map', 'loading the queries', 'localizing'):
+            prefix = 'localize_offline: %s ' % stage
+            lines = [line.split(',')[0] for line in result.stderr.splitlines() if line.startswith(prefix)]
+            self.assertEqual(lines, ['%s%d/40 (%d %%)' % (prefix, 4 * k, 10 * k) for k in range(1, 11)])
+        quiet = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', '/dev/stdout')
+        self.assertNotIn('%', quiet.stderr)  # --quiet (run_runner's) turns it off
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', '/dev/null',
+                                         '--progress', 'loud'), "--progress takes auto, bar, lines or off, got 'loud'")
+
     def test_saved_map_gives_the_same_results_as_its_images(self):
         # --save-map writes the loaded map in the recorder's format; run again on that file, every row
         # must be the same as with the folder of images (the file holds the preprocessed keyframes).

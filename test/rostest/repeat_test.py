@@ -26,6 +26,19 @@ TRACKING = (Localization.STATUS_TRACKING, Localization.STATUS_END_OF_ROUTE)
 DROPPED = range(40, 55)        # repeat frames missing in the third drive
 
 
+class DebugImageSummaries(fx.Collector):
+    """Per debug image (720 x 408 px at the defaults: keeping them all would take hundreds of MB): its
+    stamp, width, height, encoding and the BGR pixel at (10, 8), inside the header's status box."""
+
+    def __init__(self, topic):
+        fx.Collector.__init__(self, topic, Image, queue_size=100)
+
+    def _callback(self, msg):
+        offset = 8 * msg.step + 10 * 3
+        summary = (msg.header.stamp, msg.width, msg.height, msg.encoding, tuple(bytearray(msg.data[offset:offset + 3])))
+        fx.Collector._callback(self, summary)
+
+
 class RepeatTest(unittest.TestCase):
 
     @classmethod
@@ -38,7 +51,7 @@ class RepeatTest(unittest.TestCase):
         cls.repeat = fx.read_messages(os.path.join(cls.tmp, 'repeat.bag'), fx.CAMERA_TOPIC)
         cls.truth = fx.read_ground_truth(os.path.join(cls.tmp, 'ground_truth.csv'))
         cls.localizations = fx.Collector('/repeat/localization', Localization)
-        cls.debug_images = fx.Collector('/repeat/localization_debug_image', Image)
+        cls.debug_images = DebugImageSummaries('/repeat/localization_debug_image')
         cls.rosout = fx.RosoutCollector()
         # Teach, then load the map into the running localizer; a missing map is refused and the
         # loaded one kept.
@@ -49,6 +62,7 @@ class RepeatTest(unittest.TestCase):
         fx.play(os.path.join(cls.tmp, 'repeat.bag'), {fx.CAMERA_TOPIC: '/repeat_camera/image_raw'})
         fx.wait_for(lambda: cls.localizations.count() >= len(cls.repeat), 30, 'a Localization per repeat frame')
         cls.first_drive = cls.localizations.take()
+        cls.first_drive_debug = cls.debug_images.snapshot()
 
         # Out-of-range values are corrected by the nodelet and the corrected values returned.
         cls.reconfigure = ReconfigureClient('/repeat/localizer', timeout=30)
@@ -72,7 +86,7 @@ class RepeatTest(unittest.TestCase):
         player.join(120)
         fx.wait_for(lambda: cls.localizations.count() >= FRAMES, 30, 'a Localization per frame of the second drive')
         cls.second_drive = cls.localizations.take()
-        cls.debug_heights = [m.height for m in cls.debug_images.snapshot()]
+        cls.debug_heights = [m[2] for m in cls.debug_images.snapshot()]
 
         # Third drive: the generator's repeat drive again with its own stamps, frames 40..54 missing (a
         # camera dropout while the robot drives on), K back to 30.
@@ -150,15 +164,28 @@ class RepeatTest(unittest.TestCase):
 
     def test_ring_buffer_rows_change_mid_stream(self):
         self.assertEqual(self.reconfigured['ring_buffer_rows'], 10)
-        # Still one answer per frame, and the debug image (K rows x 4 px) shrank to the new K.
+        # Still one answer per frame, and the debug image (76 px header, K rows x 8 px, 92 px axis and legend,
+        # debug_image.h) shrank to the new K.
         heights = self.debug_heights
         self.assertTrue(heights, 'no debug image while subscribed')
-        self.assertEqual(heights[-1], 10 * 4)
-        self.assertGreater(max(heights), 10 * 4)
+        self.assertEqual(heights[-1], 76 + 10 * 8 + 92)
+        self.assertEqual(max(heights), 76 + 30 * 8 + 92)
         late = self.second_drive[-20:]
         self.assertTrue(all(m.status in TRACKING for m in late), [m.status for m in late])
         self.assertTrue(all(abs(m.keyframe - (FRAMES - 20 + i)) <= 1 for i, m in enumerate(late)),
                         [m.keyframe for m in late])
+
+    def test_the_debug_image_is_viewer_sized_and_shows_each_frames_status(self):
+        # Issue 33: it was 324 x 120 px of unlabelled cells. Now at least 640 px wide, the status written
+        # in a box of its colour (debug_image.cpp) for the frame it was rendered with.
+        colours = {Localization.STATUS_TRACKING: (0, 140, 0), Localization.STATUS_END_OF_ROUTE: (140, 110, 0),
+                   Localization.STATUS_INITIALIZING: (0, 120, 230), Localization.STATUS_LOST: (0, 0, 200)}
+        status_at = {m.header.stamp: m.status for m in self.first_drive}
+        images = [d for d in self.first_drive_debug if d[0] in status_at]
+        self.assertGreater(len(images), len(self.first_drive) // 2, 'debug images of the first drive')
+        for stamp, width, height, encoding, status_pixel in images:
+            self.assertEqual((width, height, encoding), (56 + 81 * 8 + 16, 76 + 30 * 8 + 92, 'bgr8'))
+            self.assertEqual(status_pixel, colours[status_at[stamp]], stamp)
 
     def test_a_camera_dropout_is_frames_missed_and_the_track_goes_on(self):
         self.assertEqual([m.header.stamp for m in self.third_drive],

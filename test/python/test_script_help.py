@@ -1,0 +1,50 @@
+"""Every command-line script in scripts/ answers --help with its usage, exit status 0, and does nothing
+else (issue 33: `run_demo --help` ran `mkdir --help`, `measure_nodelet_cpu --help` took --help for a
+folder); an unknown option is refused, not taken for a folder."""
+
+import os
+import subprocess
+import tempfile
+import unittest
+
+SCRIPTS_DIR = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..', 'scripts'))
+SCRIPTS = sorted(name for name in os.listdir(SCRIPTS_DIR) if not name.startswith('.'))
+BASH_SCRIPTS = [name for name in SCRIPTS if open(os.path.join(SCRIPTS_DIR, name)).readline().rstrip().endswith('bash')]
+
+
+def run(name, *args, cwd):
+    script = os.path.join(SCRIPTS_DIR, name)
+    interpreter = ['bash'] if name in BASH_SCRIPTS else ['/usr/bin/python3']
+    env = dict(os.environ, HOME=cwd, PATH='/usr/bin:' + os.environ.get('PATH', ''))
+    return subprocess.run(interpreter + [script] + list(args), cwd=cwd, env=env, stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE, universal_newlines=True, timeout=60)
+
+
+class ScriptHelpTest(unittest.TestCase):
+    def test_every_script_is_covered(self):
+        # The bash scripts found by their first line; a new script is checked without editing this test.
+        for name in ('demo.sh', 'measure_nodelet_cpu', 'run_demo', 'run_sanitizers.sh', 'run_tests.sh', 'setup.sh'):
+            self.assertIn(name, BASH_SCRIPTS)
+        self.assertIn('generate_route', SCRIPTS)
+
+    def test_help_prints_usage_and_creates_nothing(self):
+        for name in SCRIPTS:
+            for option in ('--help', '-h'):
+                with self.subTest(script=name, option=option), tempfile.TemporaryDirectory() as folder:
+                    done = run(name, option, cwd=folder)
+                    self.assertEqual(done.returncode, 0, done.stderr)
+                    self.assertIn('usage', done.stdout.lower())
+                    self.assertNotIn('mkdir', done.stdout + done.stderr)  # run_demo ran `mkdir --help`
+                    self.assertEqual(os.listdir(folder), [], 'created in the working folder / HOME')
+
+    def test_an_unknown_option_is_refused_not_taken_for_a_folder(self):
+        for name in BASH_SCRIPTS:
+            with self.subTest(script=name), tempfile.TemporaryDirectory() as folder:
+                done = run(name, '--no-such-option', cwd=folder)
+                self.assertEqual(done.returncode, 2, done.stdout + done.stderr)
+                self.assertIn("unknown option '--no-such-option'", done.stderr)
+                self.assertEqual(os.listdir(folder), [])
+
+
+if __name__ == '__main__':
+    unittest.main()
