@@ -8,6 +8,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "along_route_localization/homing.h"
+
 namespace along_route_localization
 {
 
@@ -50,6 +52,10 @@ std::string LocalizerParams::validate() const
     e << "ring_buffer_rows must be in [1, 1000], got " << ring_buffer_rows;
   else if (max_shift_px < 0 || max_shift_px > 127)
     e << "max_shift_px must be in [0, 127], got " << max_shift_px;
+  else if (homing_max_shift_px < 0 || homing_max_shift_px > 127)
+    e << "homing_max_shift_px must be in [0, 127], got " << homing_max_shift_px;
+  else if (homing_max_vertical_shift_px < 0 || homing_max_vertical_shift_px > 127)
+    e << "homing_max_vertical_shift_px must be in [0, 127], got " << homing_max_vertical_shift_px;
   else if (contrast_window < 1 || contrast_window > 10000)
     e << "contrast_window must be in [1, 10000] keyframes, got " << contrast_window;
   else if (!(contrast_min_std > 0.0f))
@@ -764,10 +770,10 @@ LocalizationResult Localizer::step(const uint8_t* query)
   if (result.keyframe >= 0)
   {
     result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
-    if ((global || checking_start) && coarse_difference_ && result.query_informative)  // no full-size shift in a coarse row
-      result.shift_px = difference_->compare(query, map_->keyframe(result.keyframe)).shift_px;
-    else if (result.keyframe >= newest_first_ && result.keyframe < newest_first_ + newest_width_)
-      result.shift_px = shifts_[result.keyframe];
+    if (result.query_informative)  // the homing estimate (homing.h); a featureless query reports none
+      result.shift_px = measureHomingShift(query, map_->keyframe(result.keyframe), map_->width(), map_->height(),
+                                           firstComparedRow(), params_.homing_max_shift_px,
+                                           params_.homing_max_vertical_shift_px);
     result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
   }
   return result;
