@@ -18,6 +18,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "along_route_localization/homing.h"
 #include "along_route_localization/image_difference.h"
@@ -337,9 +338,12 @@ HomingFigures homingFigures(const std::vector<double>& estimates, const std::vec
 
 TEST(HomingEstimator, LeaveOnePlaceOutOnTheStromovkaPairs)
 {
-  // scripts/evaluate_homing --cross-validate, on a smaller grid (equiangular fit): for each of the 5 places, the
-  // parameters with the lowest median error on the other 4 places, scored on that place. The floors are
-  // a little below the figures measured (README, Homing).
+  // scripts/evaluate_homing --cross-validate, on a smaller grid (equiangular fit): for each of the 5
+  // places, the parameters with the lowest median error on the other 4 places, scored on that place.
+  // Measured: median 0.400 px (worst place 0.560), within 1 px 0.845 (worst 0.773), right sign 0.965
+  // (worst 0.944); the floors below leave a little room. Phase correlation (cv::phaseCorrelate, Hanning
+  // window) on the same preprocessed images, per place: median 1.009 px, 0.609, 0.848: the homing
+  // estimate must stay ahead of it on the mean of every figure.
   std::vector<StromovkaPair> pairs;
   struct stat info;
   if (stromovkaDir().empty() || stat((stromovkaDir() + "/pairs.csv").c_str(), &info) != 0 || !readStromovkaPairs(&pairs))
@@ -366,7 +370,16 @@ TEST(HomingEstimator, LeaveOnePlaceOutOnTheStromovkaPairs)
         grid.back().max_vertical_shift_px = vertical;
       }
   std::vector<std::vector<double>> estimates(grid.size());  // [setting][pair]
-  std::vector<double> truths;
+  std::vector<double> truths, phase_correlation;
+  cv::Mat window;
+  cv::createHanningWindow(window, images.begin()->second.size(), CV_64F);
+  for (const StromovkaPair& pair : pairs)
+  {
+    cv::Mat keyframe, query;
+    images[pair.map_image].convertTo(keyframe, CV_64F);
+    images[pair.query_image].convertTo(query, CV_64F);
+    phase_correlation.push_back(cv::phaseCorrelate(keyframe, query, window).x);  // +d: query moved d px right
+  }
   for (size_t g = 0; g < grid.size(); ++g)
   {
     arl::HomingEstimator estimator(kWidth, images.begin()->second.rows, 0, grid[g]);
@@ -383,7 +396,9 @@ TEST(HomingEstimator, LeaveOnePlaceOutOnTheStromovkaPairs)
         out.push_back(values[i]);
     return out;
   };
-  double mean_median = 0.0, worst_median = 0.0, mean_sign = 0.0, worst_sign = 1.0;
+  double mean_median = 0.0, worst_median = 0.0, mean_within = 0.0, worst_within = 1.0, mean_sign = 0.0,
+         worst_sign = 1.0;
+  HomingFigures phase_mean;
   for (int place = 1; place <= 5; ++place)
   {
     size_t chosen = 0;
@@ -399,18 +414,31 @@ TEST(HomingEstimator, LeaveOnePlaceOutOnTheStromovkaPairs)
     }
     const HomingFigures held_out = homingFigures(subset(estimates[chosen], place, true), subset(truths, place, true));
     mean_median += held_out.median_error_px / 5.0;
+    mean_within += held_out.within_1px / 5.0;
     mean_sign += held_out.right_sign / 5.0;
     worst_median = std::max(worst_median, held_out.median_error_px);
+    worst_within = std::min(worst_within, held_out.within_1px);
     worst_sign = std::min(worst_sign, held_out.right_sign);
+    const HomingFigures phase = homingFigures(subset(phase_correlation, place, true), subset(truths, place, true));
+    phase_mean.median_error_px += phase.median_error_px / 5.0;
+    phase_mean.within_1px += phase.within_1px / 5.0;
+    phase_mean.right_sign += phase.right_sign / 5.0;
     std::printf("place %d: max_shift_px %d, max_vertical_shift_px %d, kept_column_share %.2f: median %.3f px, "
                 "within 1 px %.3f, right sign %.3f\n",
                 place, grid[chosen].max_shift_px, grid[chosen].max_vertical_shift_px, grid[chosen].kept_column_share,
                 held_out.median_error_px, held_out.within_1px, held_out.right_sign);
   }
-  std::printf("held out: median %.3f px (worst %.3f), right sign %.3f (worst %.3f)\n", mean_median, worst_median,
-              mean_sign, worst_sign);
-  EXPECT_LT(mean_median, 1.0);
-  EXPECT_LT(worst_median, 1.0);
-  EXPECT_GT(mean_sign, 0.5);
-  EXPECT_GT(worst_sign, 0.5);
+  std::printf("held out: median %.3f px (worst %.3f), within 1 px %.3f (worst %.3f), right sign %.3f (worst %.3f); "
+              "phase correlation %.3f px, %.3f, %.3f\n",
+              mean_median, worst_median, mean_within, worst_within, mean_sign, worst_sign, phase_mean.median_error_px,
+              phase_mean.within_1px, phase_mean.right_sign);
+  EXPECT_LT(mean_median, 0.45);
+  EXPECT_LT(worst_median, 0.65);
+  EXPECT_GT(mean_within, 0.80);
+  EXPECT_GT(worst_within, 0.72);
+  EXPECT_GT(mean_sign, 0.94);
+  EXPECT_GT(worst_sign, 0.92);
+  EXPECT_LT(mean_median, phase_mean.median_error_px);
+  EXPECT_GT(mean_within, phase_mean.within_1px);
+  EXPECT_GT(mean_sign, phase_mean.right_sign);
 }
