@@ -123,6 +123,25 @@ TEST(HomingEstimator, EquiangularFitRecoversTheSubpixelShiftOfARamp)
   EXPECT_EQ(31, estimate.kept_columns);  // round(0.5 * (64 - 2)) = 31
 }
 
+TEST(HomingEstimator, NarrowImagesGiveTheSameCosts)
+{
+  // The same ramp 12 px wide (fewer than 16 overlapping columns: the scalar loop instead of the
+  // 16-column blocks): cost(d) = |3d - 7| again, for d = -4 .. 4.
+  const int width = 12;
+  std::vector<uint8_t> query(width * kHeight), keyframe(width * kHeight);
+  for (int y = 0; y < kHeight; ++y)
+    for (int x = 0; x < width; ++x)
+    {
+      keyframe[y * width + x] = static_cast<uint8_t>(3 * x + 8);
+      query[y * width + x] = static_cast<uint8_t>(3 * x + 1);
+    }
+  arl::HomingEstimator estimator(width, kHeight, 0, homingParams(4, 0.5, arl::SubpixelFit::kEquiangular));
+  const std::vector<double>& cost = estimator.costs(query.data(), keyframe.data());
+  for (int d = -4; d <= 4; ++d)
+    EXPECT_DOUBLE_EQ(std::abs(3 * d - 7), cost[d + 4]) << "d = " << d;
+  EXPECT_NEAR(7.0 / 3.0, estimator.estimate(query.data(), keyframe.data()).shift_px, 1e-12);
+}
+
 TEST(HomingEstimator, ParabolaFitOnTheSameRampFallsShort)
 {
   // Parabola through (1, 4), (2, 1), (3, 2): vertex at 2 + 0.5 * (4 - 2) / (4 - 2 + 2) = 2.25, short of 7/3.
