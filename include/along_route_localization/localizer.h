@@ -184,6 +184,11 @@ struct LocalizerParams
   /// before the frame after the gap. Off for a camera triggered by distance travelled, whose gaps are stops.
   bool fill_frame_gaps = true;
   double horizontal_fov_rad = 1.0;    ///< camera horizontal field of view, for the homing angle
+  /// The reported shift (and homing angle) of the matched keyframe is measured by HomingEstimator over
+  /// the whole width, searching +-homing_max_shift_px px horizontally and, for each column,
+  /// +-homing_max_vertical_shift_px px vertically (HomingParams; README, Homing).
+  int homing_max_shift_px = 16;
+  int homing_max_vertical_shift_px = 2;
   bool parallel = true;               ///< spread global searches over cores
 
   std::string validate() const;

@@ -9,6 +9,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "along_route_localization/homing.h"
+
 namespace along_route_localization
 {
 
@@ -51,6 +53,10 @@ std::string LocalizerParams::validate() const
     e << "ring_buffer_rows must be in [1, 1000], got " << ring_buffer_rows;
   else if (max_shift_px < 0 || max_shift_px > 127)
     e << "max_shift_px must be in [0, 127], got " << max_shift_px;
+  else if (homing_max_shift_px < 0 || homing_max_shift_px > 127)
+    e << "homing_max_shift_px must be in [0, 127], got " << homing_max_shift_px;
+  else if (homing_max_vertical_shift_px < 0 || homing_max_vertical_shift_px > 127)
+    e << "homing_max_vertical_shift_px must be in [0, 127], got " << homing_max_vertical_shift_px;
   else if (contrast_window < 1 || contrast_window > 10000)
     e << "contrast_window must be in [1, 10000] keyframes, got " << contrast_window;
   else if (!(contrast_min_std > 0.0f))
@@ -742,7 +748,6 @@ LocalizationResult Localizer::step(const uint8_t* query)
   result.confidence = calibratedConfidence(result.confidence, params_.calibration_offset, params_.calibration_slope);
 
   const bool confident = matchConfidence(match, true, 1.0) >= params_.confidence_threshold;
-  bool replayed_whole_map = false;  // trackContradicted compared this query with the whole map (coarse on big maps)
   bool moved_track = false;         // the checks confirmed another place: the track moved there
   const bool confirmable = matchConfidence(match, true, evidence) >= params_.confidence_threshold;
   if (params_.method == SequenceMethod::kSeqSlam)
@@ -773,7 +778,6 @@ LocalizationResult Localizer::step(const uint8_t* query)
       ++frames_since_confident_;
     if (loss_.update(confident, result.query_informative && !repeated_query))  // new views only
     {
-      replayed_whole_map = params_.loss_needs_contradiction;
       const int track = coasting_ ? static_cast<int>(std::lround(coast_position_)) : match.keyframe;
       if (!params_.loss_needs_contradiction || trackContradicted(track, coasting_))
         loseTrack(track);
@@ -791,7 +795,6 @@ LocalizationResult Localizer::step(const uint8_t* query)
       // Weak evidence goes on: each new frame may bring the evidence of another place. Checked every frame,
       // a wrong place beats the chance margin now and then, so the track moves only once init_confirm_frames
       // checks in a row were contradicted by places that move along the route like the robot can.
-      replayed_whole_map = true;
       const bool contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), true);
       if (check_confirmation_.update(contradicted ? contradicting_place_ : -1, contradicted, result.query_informative))
       {
@@ -841,10 +844,10 @@ LocalizationResult Localizer::step(const uint8_t* query)
   if (result.keyframe >= 0)
   {
     result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
-    if ((global || checking_start || replayed_whole_map) && coarse_difference_ && result.query_informative)  // no full-size shift in a coarse row
-      result.shift_px = difference_->compare(query, map_->keyframe(result.keyframe)).shift_px;
-    else if (result.keyframe >= newest_first_ && result.keyframe < newest_first_ + newest_width_)
-      result.shift_px = shifts_[result.keyframe];
+    if (result.query_informative)  // the homing estimate (homing.h); a featureless query reports none
+      result.shift_px = measureHomingShift(query, map_->keyframe(result.keyframe), map_->width(), map_->height(),
+                                           firstComparedRow(), params_.homing_max_shift_px,
+                                           params_.homing_max_vertical_shift_px);
     result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
   }
   return result;

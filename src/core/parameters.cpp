@@ -107,6 +107,8 @@ const std::map<std::string, Setter>& localizerSetters()
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return costFunctionFromString(v, &l->cost_function); } },
     { "ring_buffer_rows", LOCALIZER_FIELD(int, ring_buffer_rows) },
     { "max_shift_px", LOCALIZER_FIELD(int, max_shift_px) },
+    { "homing_max_shift_px", LOCALIZER_FIELD(int, homing_max_shift_px) },
+    { "homing_max_vertical_shift_px", LOCALIZER_FIELD(int, homing_max_vertical_shift_px) },
     { "subpixel_shift",
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->subpixel_shift); } },
     { "contrast_window", LOCALIZER_FIELD(int, contrast_window) },

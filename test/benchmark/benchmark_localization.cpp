@@ -27,6 +27,7 @@
 
 #include "along_route_localization/contrast_enhancement.h"
 #include "along_route_localization/cost_ring_buffer.h"
+#include "along_route_localization/homing.h"
 #include "along_route_localization/image_difference.h"
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/online_dtw.h"
@@ -290,6 +291,26 @@ void BM_SadCompareMany(benchmark::State& state)
   state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(map->keyframeBytes()) * n);
 }
 BENCHMARK(BM_SadCompareMany)->Apply(mapSizeParallelArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
+
+// ------------------------------------------------------------------------------------------------
+// The homing estimate (homing.h) of one query against its matched keyframe, once per frame: the
+// defaults (+-16 px over the whole width, +-2 rows per column), next to the SAD search above, which
+// does +-4 px over a central strip for every keyframe of the band.
+
+void BM_HomingEstimate(benchmark::State& state)
+{
+  const auto map = routeMap(1000);
+  arl::HomingEstimator estimator(kWidth, kHeight, 0);
+  QueryStream stream(500);
+  cv::Mat query;
+  stream.next(query);
+  for (auto _ : state)
+  {
+    const arl::HomingEstimate estimate = estimator.estimate(query.data, map->keyframe(500));
+    benchmark::DoNotOptimize(estimate.shift_px);
+  }
+}
+BENCHMARK(BM_HomingEstimate)->Unit(benchmark::kMicrosecond);
 
 // ------------------------------------------------------------------------------------------------
 // The straightforward implementation: plain nested loops, every keyframe, every shift, one thread,

@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
+#include "along_route_localization/homing.h"
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/online_dtw.h"
 #include "along_route_localization/preprocessing.h"
@@ -482,6 +483,42 @@ TEST(Localizer, ReportsShiftAndHomingAngleOfAShiftedQuery)
   EXPECT_NEAR(2.0, result.shift_px, 0.5);
   EXPECT_NEAR(arl::homingAngleFromShift(result.shift_px, 64, 1.0), result.homing_angle_rad, 1e-9);
   EXPECT_NEAR(-0.03413, result.homing_angle_rad, 0.01);
+}
+
+TEST(Localizer, ReportsTheHomingEstimateBeyondTheMatchingsShiftRange)
+{
+  // Queries are keyframes shifted right by 9 px: the matching searches +-4 px only (max_shift_px), the
+  // homing estimate +-16 (homing_max_shift_px), so the reported shift is 9, not the matching's 4.
+  // Reference: HomingEstimator on the same pair. With homing_max_shift_px = 4 the estimate is somewhere
+  // in [-4, 4] (random views: no shift within the range matches better than another).
+  const auto map = syntheticMap(40);
+  for (int homing_range : { 16, 4 })
+  {
+    arl::LocalizerParams params;
+    params.homing_max_shift_px = homing_range;
+    arl::Localizer localizer(map, params);
+    arl::LocalizationResult result;
+    cv::Mat query;
+    for (int i = 0; i <= 15; ++i)
+    {
+      query = shiftedRight(keyframeCopy(*map, i), 9);
+      result = localizer.process(query);
+    }
+    ASSERT_EQ(LocalizationStatus::kTracking, result.status) << "homing range " << homing_range;
+    ASSERT_EQ(15, result.keyframe);
+    arl::HomingParams homing;
+    homing.max_shift_px = homing_range;
+    arl::HomingEstimator reference(map->width(), map->height(), 0, homing);
+    EXPECT_DOUBLE_EQ(reference.estimate(query.data, map->keyframe(15)).shift_px, result.shift_px);
+    if (homing_range == 16)
+    {
+      EXPECT_NEAR(9.0, result.shift_px, 0.25);
+    }
+    else
+    {
+      EXPECT_LE(std::abs(result.shift_px), 4.0);
+    }
+  }
 }
 
 TEST(Localizer, CoarseGlobalSearchAnswersWithTheFullResolutionShift)

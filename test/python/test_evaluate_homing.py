@@ -1,0 +1,109 @@
+"""scripts/evaluate_homing: figures and leave-one-place-out checked against hand-worked examples, the
+synthetic pairs file, and (when the package is built and the Stromovka pairs are there) one real run."""
+
+import contextlib
+import csv
+import io
+import os
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # finds scripts_under_test
+from scripts_under_test import built_executable, load
+
+evaluate_homing = load("evaluate_homing")
+
+
+def row(place, true, **estimates):
+    out = {"place": place, "true_shift_px": str(true)}
+    out.update({k: str(v) for k, v in estimates.items()})
+    return out
+
+
+class FiguresTest(unittest.TestCase):
+    def test_four_pairs_by_hand(self):
+        # (true, estimate): (2.0, 2.25) error 0.25, right sign; (-3.0, 1.5) error 4.5, wrong sign;
+        # (0.5, -1.0) error 1.5, |true| < 1 px: not counted for the sign; (1.0, 0.0) error 1.0, an estimate
+        # of 0 has the wrong sign. Errors sorted 0.25, 1.0, 1.5, 4.5: median 1.25, within 1 px 2 of 4,
+        # right sign 1 of 3.
+        rows = [row("1", 2.0, a=2.25), row("1", -3.0, a=1.5), row("1", 0.5, a=-1.0), row("1", 1.0, a=0.0)]
+        median, within, sign = evaluate_homing.figures(rows, "a")
+        self.assertAlmostEqual(median, 1.25)
+        self.assertAlmostEqual(within, 0.5)
+        self.assertAlmostEqual(sign, 1.0 / 3.0)
+
+    def test_summary_is_mean_and_worst(self):
+        mean, worst = evaluate_homing.summarize([(0.2, 0.9, 1.0), (0.6, 0.7, 0.9)])
+        self.assertEqual(tuple(round(v, 9) for v in mean), (0.4, 0.8, 0.95))
+        self.assertEqual(worst, (0.6, 0.7, 0.9))
+
+
+class CrossValidateTest(unittest.TestCase):
+    def test_each_place_is_scored_with_what_the_others_chose(self):
+        # Column "good" is exact at places 1 and 2 and off by 3 px at place 3; "fair" is off by 0.5 px
+        # everywhere. Held out place 3: chosen on 1 and 2 -> "good" (median 0), scored 3.0 on place 3.
+        # Held out place 1: on 2 and 3, good's errors 0, 0, 3, 3 (median 1.5) against fair's 0.5 -> "fair".
+        rows = []
+        for place, good_error in (("1", 0.0), ("2", 0.0), ("3", 3.0)):
+            for true in (2.0, -2.0):
+                rows.append(row(place, true, good=true + good_error, fair=true + 0.5,
+                                strip_sad=0, phase_correlation=0, phase_correlation_gray=0))
+        result = {place: (chosen, held_out) for place, chosen, held_out, _ in
+                  evaluate_homing.cross_validate(rows, ["good", "fair"])}
+        self.assertEqual(result["3"][0], "good")
+        self.assertAlmostEqual(result["3"][1][0], 3.0)
+        self.assertEqual(result["1"][0], "fair")
+        self.assertAlmostEqual(result["1"][1][0], 0.5)
+        self.assertEqual(result["2"][0], "fair")
+
+    def test_one_place_is_refused(self):
+        with self.assertRaises(evaluate_homing.EvaluationError):
+            evaluate_homing.cross_validate([row("1", 1.0, a=1.0)], ["a"])
+
+
+class SyntheticPairsTest(unittest.TestCase):
+    def test_repeat_frames_against_their_teach_frames(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            os.makedirs(os.path.join(tmp, "teach_images"))
+            os.makedirs(os.path.join(tmp, "repeat_images"))
+            with open(os.path.join(tmp, "ground_truth.csv"), "w") as f:
+                f.write("query_index,teach_frame,heading_offset_rad,expected_shift_px_64,horizontal_fov_rad,"
+                        "mean_shift_px_64,route_position_m,segment\n"
+                        "0,0,0.000000,0.0000,1.570796,0.0000,0.0,normal\n"
+                        "1,3,0.087266,2.7997,1.570796,3.6740,1.5,normal\n")
+            out = os.path.join(tmp, "pairs.csv")
+            evaluate_homing.synthetic_pairs(tmp, out)
+            with open(out) as f:
+                pairs = list(csv.DictReader(f))
+        self.assertEqual(len(pairs), 2)
+        self.assertTrue(pairs[1]["map_image"].endswith(os.path.join("teach_images", "00003.png")))
+        self.assertTrue(pairs[1]["query_image"].endswith(os.path.join("repeat_images", "00001.png")))
+        self.assertEqual(pairs[1]["true_shift_px"], "3.6740")  # the whole-width mean shift
+
+    def test_missing_folder_is_a_clear_error(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            with self.assertRaises(evaluate_homing.EvaluationError) as caught:
+                evaluate_homing.synthetic_pairs(tmp, os.path.join(tmp, "pairs.csv"))
+        self.assertIn("generate_route --images", str(caught.exception))
+
+
+class RealPairsTest(unittest.TestCase):
+    def test_default_run_on_stromovka(self):
+        tool = built_executable("homing_pairs")
+        pairs = evaluate_homing.default_pairs()
+        if tool is None or not os.path.isfile(pairs):
+            self.skipTest("needs the built homing_pairs (source devel/setup.bash) and %s" % pairs)
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            self.assertEqual(evaluate_homing.main(["--tool", tool]), 0)
+        lines = out.getvalue().splitlines()
+        self.assertTrue(lines[0].startswith("660 pairs from 5 place(s) (582 with |true shift| >= 1 px)"), lines[0])
+        package = next(line for line in lines if "(package)" in line)
+        phase = next(line for line in lines if line.strip().startswith("phase_correlation "))
+        median = float(package.split("median")[1].split("px")[0])
+        self.assertLess(median, float(phase.split("median")[1].split("px")[0]))
+
+
+if __name__ == "__main__":
+    unittest.main()
