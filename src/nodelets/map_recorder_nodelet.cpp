@@ -6,8 +6,9 @@
 //             odom (nav_msgs/Odometry, optional: only the min_distance policy reads it)
 // Publishes:  /diagnostics (state, keyframes taken and written, the writer's backlog, frames not
 //             recorded and why the last one was not)
-// Services:   ~start, ~pause, ~finish (std_srvs/Trigger)
-// Parameters: ~map (path of the map file), ~autostart (true), ~flush_period (1.0 s),
+// Services:   ~start (refused, with the reason, when the map could not be written), ~pause, ~finish
+//             (std_srvs/Trigger; says how many frames seen while recording were not recorded, and why)
+// Parameters: ~map (absolute path of the map file), ~autostart (true), ~flush_period (1.0 s),
 //             ~max_queue (1000 keyframes waiting for the writer), ~queue_size (100);
 //             keyframe policy in cfg/MapRecorder.cfg (dynamic)
 //
