@@ -7,9 +7,11 @@
 //             localization_debug_image (bgr8, only while subscribed: the ring buffer with the path, debug_image.h)
 //             /diagnostics (processing time per frame, rate, status, frames dropped and why)
 // Services:   ~load_map (along_route_localization/LoadMap)
-// Parameters: ~map (path, loaded at start), ~debug_image_scale (8), ~min_rate / ~max_rate (Hz,
+// Parameters: ~map (absolute path, loaded at start), ~debug_image_scale (8), ~min_rate / ~max_rate (Hz,
 //             expected input rate for diagnostics); cfg/Localizer.cfg (dynamic, applied between
 //             frames); any other core parameter by its parameters.h name (static, e.g. ~cost_function)
+// Test hook: ~report_input_buffer (false): publishes on ~input_buffer (std_msgs/String) the address of
+//             the pixels the core read, "<pointer> @ <sec>.<nsec>", for the zero-copy test only.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -81,6 +83,7 @@ private:
   image_transport::Publisher debug_pub_;
   ros::Subscriber params_sub_;
   ros::Publisher localization_pub_;
+  ros::Publisher input_buffer_pub_;  // the zero-copy test's hook; only with ~report_input_buffer
   ros::ServiceServer load_map_srv_;
   std::shared_ptr<diagnostic_updater::Updater> updater_;
   std::shared_ptr<diagnostic_updater::FrequencyStatus> rate_status_;
@@ -105,13 +108,15 @@ private:
   std::string refusal_;                   // why the loaded map is not used
   bool unchecked_warned_ = false;
   ros::Time last_stamp_;
+  // A frame of this map's drive was localized: a restart (a refused map accepted again) is then in the
+  // middle of the drive, and does not assume the route start.
+  bool drive_localized_ = false;
+  bool resumed_mid_drive_ = false;  // restarted so, and no frame processed since
   LocalizationResult last_result_;
   uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0;
   FrameGapCounts gaps_;
   DroppedFrames dropped_;
   double time_sum_ms_ = 0.0, time_max_ms_ = 0.0, last_time_ms_ = 0.0;
-  const void* last_input_data_ = nullptr;  // for checking the zero-copy hand-over
-  ros::Time last_input_stamp_;
 };
 
 namespace
@@ -221,8 +226,8 @@ void LocalizerNodelet::warnAboutUnreadParameters(const ros::NodeHandle& private_
   std::set<std::string> read = configParameterNames<LocalizerConfig>();
   for (const std::string& name : localizerParameterNames())
     read.insert(name);
-  const std::set<std::string> own = { "map",      "debug_image_scale", "min_rate", "max_rate", "image_transport",
-                                      "diagnostic_period" };
+  const std::set<std::string> own = { "map",           "debug_image_scale", "min_rate", "max_rate",
+                                      "image_transport", "diagnostic_period", "report_input_buffer" };
   read.insert(own.begin(), own.end());
   const std::vector<std::string> preprocessing = preprocessingParameterNames();
   for (const std::string& name : unreadParameters(private_nh, read))
@@ -294,6 +299,10 @@ void LocalizerNodelet::onInit()
   diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
 
   localization_pub_ = nh.advertise<Localization>("localization", 10);
+  bool report_input_buffer = false;
+  private_nh.param("report_input_buffer", report_input_buffer, report_input_buffer);
+  if (report_input_buffer)
+    input_buffer_pub_ = private_nh.advertise<std_msgs::String>("input_buffer", 100);
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
   debug_pub_ = it_->advertise("localization_debug_image", 1);
   load_map_srv_ = private_nh.advertiseService("load_map", &LocalizerNodelet::loadMapCb, this);
@@ -367,6 +376,7 @@ bool LocalizerNodelet::loadMap(const std::string& path, std::string* message)
   std::shared_ptr<const RouteMap> map;
   try
   {
+    requireAbsoluteMapPath(path);
     map = std::make_shared<const RouteMap>(readMap(path));
   }
   catch (const MapError& e)
@@ -394,6 +404,7 @@ bool LocalizerNodelet::loadMap(const std::string& path, std::string* message)
     map_width_ = map_->width();
   }
   localizer_.reset();
+  drive_localized_ = resumed_mid_drive_ = false;
   useMapIfAccepted();
   if (!localizer_)
   {
@@ -429,9 +440,25 @@ void LocalizerNodelet::useMapIfAccepted()
                  params_.start_keyframe, map_path_.c_str(), map_->size());
   try
   {
-    localizer_.reset(new Localizer(map_, effectiveParams(params_)));
+    if (drive_localized_)
+    {
+      // Refused in the middle of the drive: the robot is somewhere along the route, maybe far from
+      // where it was when the refusal began. Not at the route start: unknown, a global search. A later
+      // new drive (time going back) starts at start_keyframe again.
+      LocalizerParams unknown_start = effectiveParams(params_);
+      unknown_start.start_keyframe = -1;
+      localizer_.reset(new Localizer(map_, unknown_start));
+      localizer_->setParams(effectiveParams(params_));
+      resumed_mid_drive_ = true;
+    }
+    else
+    {
+      localizer_.reset(new Localizer(map_, effectiveParams(params_)));
+    }
     if (!refusal_.empty())
-      NODELET_INFO("Preprocessing parameters match map %s again; localizing", map_path_.c_str());
+      NODELET_INFO("Preprocessing parameters match map %s again; localizing%s", map_path_.c_str(),
+                   drive_localized_ ? " from an unknown place (a global search), since the refusal began mid-drive" :
+                                      "");
     refusal_.clear();
   }
   catch (const std::exception& e)
@@ -519,6 +546,23 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     dropFrame(kSize, sentence);
     return;
   }
+  if (resumed_mid_drive_ && !last_stamp_.isZero() && msg->header.stamp < last_stamp_)
+  {
+    // The first frame since the restart is from before the last one: another drive, from the start.
+    NODELET_WARN("Time went backwards (%.3f s -> %.3f s; a looping bag?): restarted the localization",
+                 last_stamp_.toSec(), msg->header.stamp.toSec());
+    ++resets_;
+    try
+    {
+      localizer_.reset(new Localizer(map_, effectiveParams(params_)));
+    }
+    catch (const std::exception& e)
+    {
+      dropFrame(kFailure, std::string("the localizer failed to start over: ") + e.what());
+      return;
+    }
+  }
+  resumed_mid_drive_ = false;
   const cv_bridge::CvImageConstPtr input = cv_bridge::toCvShare(msg);
   const auto start = std::chrono::steady_clock::now();
   LocalizationResult result;
@@ -574,14 +618,24 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     publishDebugImage(msg->header, result);
 
   last_result_ = result;
+  drive_localized_ = true;
   dropped_.used();
   ++frames_;
   ++frames_in_period_;
   time_sum_ms_ += elapsed_ms;
   time_max_ms_ = std::max(time_max_ms_, elapsed_ms);
   last_time_ms_ = elapsed_ms;
-  last_input_data_ = input->image.data;
-  last_input_stamp_ = msg->header.stamp;
+  if (input_buffer_pub_)
+  {
+    // Equal to the address of the buffer the preprocessor filled when the hand-over in one manager
+    // copies nothing.
+    char text[96];
+    std::snprintf(text, sizeof(text), "%p @ %u.%09u", static_cast<const void*>(input->image.data),
+                  msg->header.stamp.sec, msg->header.stamp.nsec);
+    std_msgs::String report;
+    report.data = text;
+    input_buffer_pub_.publish(report);
+  }
   rate_status_->tick();
 }
 
@@ -665,12 +719,6 @@ void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.addf("processing time last (ms)", "%.3f", last_time_ms_);
   stat.addf("processing time mean (ms)", "%.3f", frames_in_period_ > 0 ? time_sum_ms_ / frames_in_period_ : 0.0);
   stat.addf("processing time max (ms)", "%.3f", time_max_ms_);
-  // The data pointer of the last frame as the core saw it: equal to the address of the buffer the
-  // preprocessor filled when the hand-over in one manager copies nothing.
-  char input[96];
-  std::snprintf(input, sizeof(input), "%p @ %u.%09u", last_input_data_, last_input_stamp_.sec,
-                last_input_stamp_.nsec);
-  stat.add("input buffer", std::string(input));
   frames_in_period_ = 0;
   time_sum_ms_ = 0.0;
   time_max_ms_ = 0.0;

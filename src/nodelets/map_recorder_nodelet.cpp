@@ -6,8 +6,9 @@
 //             odom (nav_msgs/Odometry, optional: only the min_distance policy reads it)
 // Publishes:  /diagnostics (state, keyframes taken and written, the writer's backlog, frames not
 //             recorded and why the last one was not)
-// Services:   ~start, ~pause, ~finish (std_srvs/Trigger)
-// Parameters: ~map (path of the map file), ~autostart (true), ~flush_period (1.0 s),
+// Services:   ~start (refused, with the reason, when the map could not be written), ~pause, ~finish
+//             (std_srvs/Trigger; says how many frames seen while recording were not recorded, and why)
+// Parameters: ~map (absolute path of the map file), ~autostart (true), ~flush_period (1.0 s),
 //             ~max_queue (1000 keyframes waiting for the writer), ~queue_size (100);
 //             keyframe policy in cfg/MapRecorder.cfg (dynamic)
 //
@@ -90,6 +91,8 @@ private:
     kWriterBehind
   };
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
+  /// "; not recorded: 244 of the 600 frames seen while recording (...)", or empty when none was lost.
+  std::string lossSentence() const;
   void writerLoop();
 
   // Static parameters, read in onInit.
@@ -191,6 +194,7 @@ void MapRecorderNodelet::onInit()
   }
   try
   {
+    requireAbsoluteMapPath(map_path_);
     checkMapTarget(map_path_);
   }
   catch (const MapError& e)
@@ -235,7 +239,19 @@ MapRecorderNodelet::~MapRecorderNodelet()
   }
   writer_cv_.notify_all();
   writer_thread_.join();
-  NODELET_INFO("%s", finish_message_.c_str());
+  const std::string lost = lossSentence();
+  if (lost.empty())
+    NODELET_INFO("%s", finish_message_.c_str());
+  else
+    NODELET_WARN("%s%s", finish_message_.c_str(), lost.c_str());
+}
+
+std::string MapRecorderNodelet::lossSentence() const
+{
+  if (refused_.count() == 0)
+    return std::string();
+  return "; not recorded: " + std::to_string(refused_.count()) + " of the " + std::to_string(frames_seen_) +
+         " frames seen while recording (" + refused_.byKind("frame") + ")";
 }
 
 void MapRecorderNodelet::configCb(MapRecorderConfig& config, uint32_t /*level*/)
@@ -410,7 +426,8 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
   else if (!writer_error.empty())
     stat.summary(DiagnosticStatus::ERROR, "not recording: " + writer_error);
   else if (state == State::kFinished)
-    stat.summary(DiagnosticStatus::OK, finish_message.empty() ? std::string("finishing") : "finished: " + finish_message);
+    stat.summary(refused_.count() > 0 ? DiagnosticStatus::WARN : DiagnosticStatus::OK,
+                 finish_message.empty() ? std::string("finishing") : "finished: " + finish_message + lossSentence());
   else if (state == State::kIdle)
     stat.summary(DiagnosticStatus::OK, "idle: call ~start to record");
   else if (state == State::kPaused)
@@ -433,7 +450,29 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
 
 bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::Trigger::Response& res)
 {
+  // What would make ~finish fail is said now: before the first keyframe, the target is checked again (a
+  // `.active` left by an interrupted recording may have come, or gone, since the nodelet was loaded).
+  bool nothing_taken;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    nothing_taken = keyframes_queued_ == 0;
+  }
+  std::string target_error;
+  if (!map_path_.empty() && nothing_taken)
+  {
+    try
+    {
+      requireAbsoluteMapPath(map_path_);
+      checkMapTarget(map_path_);
+    }
+    catch (const MapError& e)
+    {
+      target_error = e.what();
+    }
+  }
   std::lock_guard<std::mutex> lock(queue_mutex_);
+  if (nothing_taken && keyframes_queued_ == 0)
+    writer_error_ = target_error;  // before any keyframe, only the target can have failed
   if (map_path_.empty())
   {
     res.success = false;
@@ -444,13 +483,21 @@ bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::
     res.success = false;
     res.message = "the recording of " + map_path_ + " is finished; load the nodelet again to record another map";
   }
+  else if (!writer_error_.empty())
+  {
+    res.success = false;
+    res.message = "cannot record " + map_path_ + ": " + writer_error_;
+  }
   else
   {
     res.success = true;
     res.message = std::string(state_ == State::kPaused ? "resumed" : "started") + " recording " + map_path_;
     state_ = State::kRecording;
   }
-  NODELET_INFO("~start: %s", res.message.c_str());
+  if (res.success)
+    NODELET_INFO("~start: %s", res.message.c_str());
+  else
+    NODELET_ERROR("~start: %s", res.message.c_str());
   return true;
 }
 
@@ -497,7 +544,12 @@ bool MapRecorderNodelet::finishCb(std_srvs::Trigger::Request& /*req*/, std_srvs:
     res.success = writer_error_.empty() && keyframes_written_ > 0;
     res.message = finish_message_;
   }
-  NODELET_INFO("~finish: %s", res.message.c_str());
+  const std::string lost = lossSentence();
+  res.message += lost;
+  if (res.success && lost.empty())
+    NODELET_INFO("~finish: %s", res.message.c_str());
+  else
+    NODELET_WARN("~finish: %s", res.message.c_str());
   return true;
 }
 

@@ -1,5 +1,7 @@
 #include "ros/diagnostics.h"
 
+#include <algorithm>
+
 namespace along_route_localization
 {
 
@@ -23,12 +25,29 @@ bool DroppedFrames::drop(int kind, const std::string& reason)
   newest_dropped_ = true;
   last_reason_ = reason;
   last_kind_ = kind;
+  auto same = std::find_if(kinds_.begin(), kinds_.end(), [kind](const Kind& k) { return k.kind == kind; });
+  if (same == kinds_.end())
+    kinds_.push_back(Kind{ kind, 1, reason });
+  else
+  {
+    ++same->count;
+    same->reason = reason;
+  }
   const ros::WallTime now = ros::WallTime::now();
   ros::WallTime& last = last_logged_[kind];
   if (!last.isZero() && (now - last).toSec() < 5.0)
     return false;
   last = now;
   return true;
+}
+
+std::string DroppedFrames::byKind(const std::string& noun) const
+{
+  std::string text;
+  for (const Kind& k : kinds_)
+    text += (text.empty() ? "" : "; ") + std::to_string(k.count) + " " + noun + (k.count == 1 ? "" : "s") + ": " +
+            k.reason;
+  return text;
 }
 
 void DroppedFrames::addTo(diagnostic_updater::DiagnosticStatusWrapper& stat, const std::string& noun) const

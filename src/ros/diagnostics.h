@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <ros/ros.h>
@@ -36,6 +37,9 @@ public:
   bool newestDropped() const { return newest_dropped_; }
   const std::string& lastReason() const { return last_reason_; }
   int lastKind() const { return last_kind_; }
+  /// "243 frames: the preprocessing parameters changed during the teach (...); 1 frame: waiting for ..." --
+  /// the count of each kind with its latest reason, in the order the kinds first came; empty when none.
+  std::string byKind(const std::string& noun) const;
   /// Adds "<noun> dropped" (the count) and "last dropped <noun>" (the reason, or "(none)").
   void addTo(diagnostic_updater::DiagnosticStatusWrapper& stat, const std::string& noun) const;
 
@@ -45,6 +49,13 @@ private:
   std::string last_reason_;
   int last_kind_ = 0;
   std::map<int, ros::WallTime> last_logged_;
+  struct Kind
+  {
+    int kind;
+    uint64_t count;
+    std::string reason;  // the latest
+  };
+  std::vector<Kind> kinds_;
 };
 
 }  // namespace along_route_localization

@@ -1,6 +1,7 @@
 #include "ros/map_io.h"
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -601,6 +602,18 @@ bool holdsNoKeyframes(const std::string& bag_path)
 
 }  // namespace
 
+void requireAbsoluteMapPath(const std::string& path)
+{
+  if (path.empty() || path[0] == '/')
+    return;
+  char cwd[4096];
+  const std::string here = ::getcwd(cwd, sizeof(cwd)) ? std::string(cwd) : std::string("(unknown)");
+  throw MapError("map file " + inQuotes(path) + " is a relative path: this nodelet works in its manager's working "
+                 "directory (" + here + ", ROS_HOME when roslaunch starts it), so it would be " +
+                 inQuotes(here + "/" + path) + ", not where you started roslaunch. Give an absolute path " +
+                 "(teach.launch and repeat.launch make a relative map:= absolute from where roslaunch was started)");
+}
+
 void checkMapTarget(const std::string& path)
 {
   if (path.empty())
@@ -726,6 +739,35 @@ void MapWriter::flush()
     throw MapError("cannot rename " + inQuotes(active) + " to " + inQuotes(path_) + ": " + std::strerror(errno));
   written_ += pending_.size();
   pending_.clear();
+  ++flushes_;
+}
+
+void MapWriter::writeOneConnectionPerTopic()
+{
+  const std::string active = activePath();
+  try
+  {
+    rosbag::Bag in(path_, rosbag::bagmode::Read);
+    rosbag::Bag out(active, rosbag::bagmode::Write);
+    // Bag times strictly increase (flush()), so time order is the map order. rosbag gives messages
+    // written with equal connection headers on one topic one connection.
+    for (const rosbag::MessageInstance& message : rosbag::View(in))
+      out.write(message.getTopic(), message.getTime(), message, message.getConnectionHeader());
+    out.close();
+  }
+  catch (const rosbag::BagException& e)
+  {
+    std::remove(active.c_str());
+    ROS_WARN_STREAM("Map " << inQuotes(path_) << " is complete, but writing it with one connection per topic failed ("
+                           << e.what() << "); it keeps one per flush, which reads the same");
+    return;
+  }
+  if (std::rename(active.c_str(), path_.c_str()) != 0)
+  {
+    ROS_WARN_STREAM("Map " << inQuotes(path_) << " is complete, but renaming " << inQuotes(active)
+                           << " over it failed (" << std::strerror(errno) << "); it keeps one connection per flush");
+    std::remove(active.c_str());
+  }
 }
 
 void MapWriter::close()
@@ -736,6 +778,8 @@ void MapWriter::close()
   flush();
   if (written_ == 0)
     std::remove(activePath().c_str());  // nothing recorded: leave no file behind
+  else if (flushes_ > 1)
+    writeOneConnectionPerTopic();
 }
 
 }  // namespace along_route_localization

@@ -74,6 +74,12 @@ std::string replacedMapPath(const std::string& path, time_t modified);
 /// holds keyframe messages; an empty bag is no loss and is reused).
 void checkMapTarget(const std::string& path);
 
+/// Throws MapError when `path` is relative. For the nodelets: a nodelet works in its manager's working
+/// directory (ROS_HOME, ~/.ros, for nodes that roslaunch starts), not where the user started roslaunch,
+/// so a relative path would name a file where nobody looks. The sentence names both places.
+/// teach.launch and repeat.launch make a relative map:= absolute first, from where roslaunch was started.
+void requireAbsoluteMapPath(const std::string& path);
+
 /// Writes a map as it is recorded. Not thread-safe: one thread (the recorder's writer thread) owns it.
 ///
 /// Keyframes added are buffered until flush(). Each flush appends them to `<path>.active` and renames
@@ -82,6 +88,10 @@ void checkMapTarget(const std::string& path);
 /// reindex <path>.active` recovers it). A map file left from before keeps its name until the first
 /// keyframe of the new recording is flushed; then it is renamed to replacedPath()
 /// (`<stem>.replaced-<its modification time>.bag`), never overwritten.
+///
+/// rosbag's Append mode starts new connections, so after n flushes the map holds n connections per
+/// topic (each with its message definition: a short flush period makes the file several times larger).
+/// close() writes it once more in one go, with one connection per topic, as `rosbag record` does.
 class MapWriter
 {
 public:
@@ -103,7 +113,9 @@ public:
   /// buffered. Throws MapError (the keyframes stay buffered, so a later flush may retry).
   void flush();
 
-  /// flush() and stop accepting keyframes. Idempotent. Throws MapError.
+  /// flush() and stop accepting keyframes; a map written by more than one flush is then written again
+  /// with one connection per topic (if that fails, the map as flushed stays, complete, and a warning
+  /// is logged). Idempotent. Throws MapError.
   void close();
 
   const std::string& path() const { return path_; }
@@ -117,11 +129,15 @@ public:
   const std::string& replacedPath() const { return replaced_path_; }
 
 private:
+  /// Writes the map at path() again with one connection per topic (see the class comment).
+  void writeOneConnectionPerTopic();
+
   std::string path_;
   PreprocessingParams params_;
   std::string writer_info_;
   std::vector<sensor_msgs::ImageConstPtr> pending_;
   size_t written_ = 0;
+  int flushes_ = 0;  // that wrote keyframes
   ros::Time last_bag_time_;
   bool closed_ = false;
   std::string replaced_path_;

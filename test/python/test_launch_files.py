@@ -71,6 +71,24 @@ class LaunchFileTest(unittest.TestCase):
                     self.assertNotIn('/preprocessor/', default)
                     self.assertEqual(default, roslaunch('--dump-params', path, 'params_file:=none'))
 
+    def test_a_relative_map_is_taken_from_where_roslaunch_was_started(self):
+        # Issue 33: map:=route.bag was written under $ROS_HOME, the nodelets' working directory.
+        nodelet_of = {'teach.launch': 'map_recorder', 'repeat.launch': 'localizer'}
+        with tempfile.TemporaryDirectory() as folder:
+            env = dict(os.environ, PWD=folder, HOME='/home/someone')
+            for name, nodelet in nodelet_of.items():
+                path = os.path.join(LAUNCH_DIR, name)
+                for given, expected in (('route.bag', os.path.join(folder, 'route.bag')),
+                                        ('maps/route.bag', os.path.join(folder, 'maps/route.bag')),
+                                        ('~/route.bag', '/home/someone/route.bag'),
+                                        ('/data/route.bag', '/data/route.bag')):
+                    with self.subTest(launch=name, map=given):
+                        done = subprocess.run([ROSLAUNCH, '--dump-params', path, 'map:=' + given], cwd=folder,
+                                              env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                              universal_newlines=True, timeout=60)
+                        self.assertEqual(done.returncode, 0, done.stdout)
+                        self.assertIn('/{}/map: {}\n'.format(nodelet, expected), done.stdout)
+
 
 def package_found():
     rospack = shutil.which('rospack', path='/usr/bin:' + os.environ.get('PATH', ''))

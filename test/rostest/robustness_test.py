@@ -15,7 +15,9 @@ import rostest
 from diagnostic_msgs.msg import DiagnosticStatus
 from dynamic_reconfigure.client import Client as ReconfigureClient
 from nodelet.srv import NodeletLoad, NodeletUnload
+from rosgraph_msgs.msg import Log
 from sensor_msgs.msg import Image
+from std_srvs.srv import Trigger
 
 from along_route_localization.msg import Localization
 from along_route_localization.srv import LoadMap
@@ -162,9 +164,68 @@ class RobustnessTest(unittest.TestCase):
             self.assertEqual(recording.message, 'recording: 1 keyframe')
             values = fx.status_values(recording)
             self.assertEqual((values['frames dropped'], values['frames seen while recording']), ('1', '2'))
+            # Issue 33: ~finish said success and nothing of the frames not recorded.
+            finish = rospy.ServiceProxy(name + '/finish', Trigger)()
+            self.assertTrue(finish.success, finish.message)
+            self.assertEqual(finish.message, "map %s holds 1 keyframes; not recorded: 1 of the 2 frames seen while "
+                             "recording (1 frame: a 32x16 'mono8' frame: the preprocessing parameters make 64x32 "
+                             "mono8)" % path)
+            fx.wait_for(lambda: self.rosout.matching('~finish: ' + finish.message, Log.WARN), 10,
+                        'the finish said at WARN')
         finally:
             rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
             fx.remove(path)
+
+    def test_start_says_when_a_leftover_active_file_will_make_the_recording_fail(self):
+        # Issue 33: ~start said success while a `.active` left by a killed recorder (holding keyframes)
+        # would make ~finish fail. It now refuses, naming the file; once the file is moved away it starts.
+        name = '/repeat/leftover_recorder'
+        path = os.path.join(self.tmp, 'leftover_map.bag')
+        fx.write_bag(path + '.active', 'keyframes', [self.good(0)])
+        rospy.set_param(name + '/map', path)
+        rospy.set_param(name + '/autostart', False)
+        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
+            name, 'along_route_localization/map_recorder', [], [], [], '')
+        self.assertTrue(loaded.success)
+        try:
+            fx.wait_for_service(name + '/start')
+            refused = rospy.ServiceProxy(name + '/start', Trigger)()
+            self.assertFalse(refused.success, refused.message)
+            self.assertIn("cannot record %s: '%s.active' exists" % (path, path), refused.message)
+            os.rename(path + '.active', path + '.recovered')
+            started = rospy.ServiceProxy(name + '/start', Trigger)()
+            self.assertTrue(started.success, started.message)
+            self.assertEqual(started.message, 'started recording ' + path)
+        finally:
+            rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
+            fx.remove(path, path + '.recovered')
+
+    def test_a_refusal_that_ends_mid_drive_does_not_restart_at_the_route_start(self):
+        # Issue 33: after the preprocessing was changed and set back mid-drive, the localizer started
+        # over at keyframe 0 (start_keyframe) and said tracking there for about 10 frames. The robot is
+        # further along: the place is unknown, a global search (initializing) until one is confirmed.
+        def send(indices):
+            sent = []
+            for i in indices:
+                sent.append(self.good(i))
+                self.camera.publish(sent[-1])
+                time.sleep(0.05)
+            return sent
+        first = send(range(0, 20))
+        self.wait_for_stamp(self.localizations, first[-1].header.stamp, 'the first half of the drive')
+        preprocessor = ReconfigureClient('/repeat/preprocessor', timeout=30)
+        preprocessor.update_configuration({'sky_fraction': 0.25})
+        try:
+            refused = send([20])
+            self.wait_for_stamp(self.preprocessed, refused[0].header.stamp, 'a frame made with sky_fraction 0.25')
+        finally:
+            preprocessor.update_configuration({'sky_fraction': 0.0})
+        second = send(range(21, FRAMES))
+        self.wait_for_stamp(self.localizations, second[-1].header.stamp, 'the second half of the drive')
+        after = [m for m in self.localizations.snapshot() if m.header.stamp >= second[0].header.stamp]
+        answers = [(m.status, m.keyframe) for m in after]
+        self.assertEqual(after[0].status, Localization.STATUS_INITIALIZING, answers)
+        self.assertEqual([a for a in answers if a[0] == Localization.STATUS_TRACKING and a[1] < 15], [], answers)
 
     def test_frames_smaller_than_the_output_pass_enlarged_with_a_warning(self):
         dot = self.stamped(image('mono8', 1, 1, b'\x80'))

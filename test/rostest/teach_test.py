@@ -90,6 +90,12 @@ class TeachTest(unittest.TestCase):
             self.assertEqual((k.encoding, k.width, k.height), ('mono8', 64, 32))
         # The stored parameters are the ones the preprocessor announced for these images.
         self.assertEqual(preprocessing, [self.announced.data])
+        # One connection per topic, as `rosbag record` writes (issue 33: one per flush, here about 6).
+        import rosbag
+        with rosbag.Bag(path) as bag:
+            topics = bag.get_type_and_topic_info().topics
+        self.assertEqual({topic: info.connections for topic, info in topics.items()},
+                         {'keyframes': 1, 'preprocessing': 1, 'info': 1})
         return keyframes
 
     def test_every_frame_is_a_keyframe_by_default(self):

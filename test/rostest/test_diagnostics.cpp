@@ -47,3 +47,14 @@ TEST(DroppedFrames, CountsSaysTheLastReasonAndLogsEachKindAtOnce)
   EXPECT_FALSE(dropped.drop(1, "a 32x16 frame"));  // still within 5 s of kind 1's message
   EXPECT_TRUE(dropped.newestDropped());
 }
+
+TEST(DroppedFrames, ByKindCountsEachKindWithItsLatestReasonInTheOrderTheyCame)
+{
+  arl::DroppedFrames dropped;
+  EXPECT_EQ("", dropped.byKind("frame"));
+  dropped.drop(3, "waiting for the parameters");
+  dropped.drop(1, "a 32x16 frame");
+  dropped.drop(1, "a 16x8 frame");
+  dropped.drop(1, "a 16x8 frame");
+  EXPECT_EQ("1 frame: waiting for the parameters; 3 frames: a 16x8 frame", dropped.byKind("frame"));
+}

@@ -13,10 +13,12 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <string>
 #include <vector>
 
 #include <rosbag/bag.h>
+#include <rosbag/view.h>
 #include <sensor_msgs/image_encodings.h>
 #include <std_msgs/String.h>
 
@@ -54,6 +56,12 @@ protected:
   {
     struct stat info;
     return ::stat(file.c_str(), &info) == 0;
+  }
+
+  static off_t fileSize(const std::string& file)
+  {
+    struct stat info;
+    return ::stat(file.c_str(), &info) == 0 ? info.st_size : -1;
   }
 
   static std::string readAll(const std::string& file)
@@ -154,6 +162,68 @@ TEST_F(MapIoTest, EachFlushLeavesACompleteMapUnderTheFinalName)
   EXPECT_EQ(readMap(file).size(), 6u);
   EXPECT_FALSE(exists(file + ".active"));
   EXPECT_THROW(writer.add(keyframeMessage(randomKeyframe(rng), 30)), MapError);
+}
+
+// Issue 33: each flush appended new connections (60 for 599 keyframes; a file 2.5x larger with a short
+// flush period). A closed map holds one connection per topic, as `rosbag record` writes.
+TEST_F(MapIoTest, AClosedMapHoldsOneConnectionPerTopic)
+{
+  const std::string file = path("map.bag");
+  cv::RNG rng(4);
+  MapWriter writer(file, PreprocessingParams());
+  std::vector<cv::Mat> keyframes;
+  for (int flush = 0; flush < 5; ++flush)
+  {
+    for (int k = 0; k < 3; ++k)
+    {
+      keyframes.push_back(randomKeyframe(rng));
+      writer.add(keyframeMessage(keyframes.back(), 100 + 10 * flush + k));
+    }
+    writer.flush();
+  }
+  const auto connectionsPerTopic = [&file]() {
+    rosbag::Bag bag(file, rosbag::bagmode::Read);
+    rosbag::View view(bag);
+    std::map<std::string, int> count;
+    for (const rosbag::ConnectionInfo* connection : view.getConnections())
+      ++count[connection->topic];
+    return count;
+  };
+  EXPECT_EQ(connectionsPerTopic()[kMapKeyframesTopic], 5) << "while recording: one per flush (rosbag's Append)";
+  const off_t flushed_size = fileSize(file);
+  writer.close();
+  const std::map<std::string, int> closed = connectionsPerTopic();
+  EXPECT_EQ(closed, (std::map<std::string, int>{ { kMapInfoTopic, 1 }, { kMapKeyframesTopic, 1 },
+                                                 { kMapPreprocessingTopic, 1 } }));
+  EXPECT_LT(fileSize(file), flushed_size) << "four message definitions of sensor_msgs/Image fewer";
+  EXPECT_FALSE(exists(file + ".active"));
+  const RouteMap map = readMap(file);
+  ASSERT_EQ(map.size(), keyframes.size());
+  for (size_t k = 0; k < keyframes.size(); ++k)
+  {
+    EXPECT_EQ(map.stampNs(k), static_cast<int64_t>(100 + 10 * (k / 3) + k % 3));
+    EXPECT_EQ(cv::norm(map.keyframeMat(k), keyframes[k], cv::NORM_L1), 0.0) << k;
+  }
+}
+
+// Issue 33: a relative map:= was written under $ROS_HOME (the manager's working directory).
+TEST(MapIo, TheNodeletsRefuseARelativeMapPathNamingWhereItWouldBe)
+{
+  EXPECT_NO_THROW(requireAbsoluteMapPath("/tmp/route.bag"));
+  EXPECT_NO_THROW(requireAbsoluteMapPath(""));  // "no map", said elsewhere
+  char cwd[4096];
+  ASSERT_NE(::getcwd(cwd, sizeof(cwd)), nullptr);
+  try
+  {
+    requireAbsoluteMapPath("route.bag");
+    FAIL() << "a relative path was accepted";
+  }
+  catch (const MapError& e)
+  {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("'route.bag' is a relative path"), std::string::npos) << what;
+    EXPECT_NE(what.find("'" + std::string(cwd) + "/route.bag'"), std::string::npos) << what;
+  }
 }
 
 TEST_F(MapIoTest, EveryMapThatWasThereIsKeptUnderItsOwnName)
