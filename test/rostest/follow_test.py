@@ -144,10 +144,12 @@ class FollowTest(unittest.TestCase):
         self.assertFalse(self.start_without_map.success)
         self.assertIn('does not exist', self.start_without_map.message)
 
-        # Idle: localizations arrive, nothing is commanded.
+        # Not started (and no map read yet): localizations arrive, nothing is commanded.
         self.localizations.set(localization())
         idle = self.status(lambda s: int(fx.status_values(s)['localizations received']) > 0, 'localizations')
-        self.assertEqual(fx.status_values(idle)['state'], 'idle')
+        self.assertEqual(fx.status_values(idle)['state'], 'no map')
+        self.assertEqual(idle.level, DiagnosticStatus.ERROR)
+        self.assertIn('will not drive: ', idle.message)
         self.assertEqual(fx.status_values(idle)['commands published'], '0')
         self.assertEqual(self.commands.count(), 0)
 
