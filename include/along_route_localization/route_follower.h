@@ -3,7 +3,8 @@
 // the matched keyframe (the feed-forward) to a proportional turn on the homing angle (the feedback),
 // and decides when it is not safe to drive (low confidence, lost, no localization, end of the route).
 //
-// Time is an argument everywhere (seconds, any epoch, non-decreasing): nothing here reads a clock.
+// Time is an argument everywhere (seconds, any epoch): nothing here reads a clock. Time that goes back (a
+// restarted clock, a looping bag with sim time) stops the robot until the next localization.
 #ifndef ALONG_ROUTE_LOCALIZATION_ROUTE_FOLLOWER_H
 #define ALONG_ROUTE_LOCALIZATION_ROUTE_FOLLOWER_H
 
@@ -111,7 +112,7 @@ public:
   /// A localization received at now_s. Its status END_OF_ROUTE finishes the route.
   void localization(const FollowerInput& input, double now_s);
 
-  /// The command to send at now_s (call at the control rate, times non-decreasing).
+  /// The command to send at now_s (call at the control rate).
   FollowerCommand command(double now_s);
 
   State state() const { return state_; }

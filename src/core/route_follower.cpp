@@ -243,6 +243,11 @@ void RouteFollower::computeTarget(double now_s)
     return;
   }
   const double silence_s = now_s - last_input_s_;
+  if (silence_s < 0.0)
+  {
+    reason_ = "stopped: time went back since the last localization (a restarted clock?); waiting for the next one";
+    return;
+  }
   if (silence_s > params_.watchdog_timeout_s)
   {
     reason_ = formatted("stopped: no localization for %.2f s (watchdog_timeout %.2f s)", silence_s,
@@ -292,6 +297,8 @@ void RouteFollower::computeTarget(double now_s)
 FollowerCommand RouteFollower::command(double now_s)
 {
   computeTarget(now_s);
+  if (have_command_time_ && now_s < command_s_)
+    command_s_ = now_s;  // time went back: no change in this call, ramps go on from here
   const double dt = have_command_time_ ? std::max(0.0, now_s - command_s_) : 0.0;
   command_.linear_mps = approach(command_.linear_mps, target_.linear_mps, params_.max_linear_accel * dt);
   command_.angular_rps = approach(command_.angular_rps, target_.angular_rps, params_.max_angular_accel * dt);

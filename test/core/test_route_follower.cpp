@@ -203,6 +203,22 @@ TEST(RouteFollower, WatchdogStopsWhenLocalizationsStopComing)
   EXPECT_CLOSE(0.4, follower.command(11.1).linear_mps);  // 0.2 s since the last command at 2 m/s^2
 }
 
+TEST(RouteFollower, TimeGoingBackStopsUntilTheNextLocalization)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.max_linear_accel = 1.0;
+  arl::RouteFollower follower = started({ motion(0.6, 0.0) }, params);
+  follower.localization(tracking(0, 0.9, 0.0), 100.0);
+  EXPECT_CLOSE(0.6, follower.command(100.5).linear_mps);
+  // The clock restarts at 1 s: the last localization is "in the future"; the ramp down starts from there.
+  EXPECT_CLOSE(0.6, follower.command(1.0).linear_mps);
+  EXPECT_NE(std::string::npos, follower.reason().find("time went back")) << follower.reason();
+  EXPECT_CLOSE(0.4, follower.command(1.2).linear_mps);
+  follower.localization(tracking(0, 0.9, 0.0), 1.3);
+  EXPECT_CLOSE(0.6, follower.command(1.4).linear_mps);  // 0.4 + 1 m/s^2 x 0.2 s
+  EXPECT_EQ("following", follower.reason());
+}
+
 TEST(RouteFollower, StopsWhileLostOrInitializingOrOnAKeyframeOutsideTheMap)
 {
   arl::RouteFollower follower = started({ motion(0.6, 0.1), motion(0.6, 0.1) }, immediate());
