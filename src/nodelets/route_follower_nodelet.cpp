@@ -13,6 +13,7 @@
 // Times are ROS time (sim time with /clock): a localization counts when it is received, so the watchdog
 // sees a localizer that stopped, whatever stamps its camera gave.
 #include <cmath>
+#include <map>
 #include <memory>
 #include <set>
 #include <string>
@@ -138,8 +139,9 @@ void RouteFollowerNodelet::loadMap(const std::string& path)
   map_error_.clear();
   try
   {
-    const RouteMap map = readMap(path);
-    std::vector<TaughtMotion> motion = completeTaughtMotion(readTaughtMotion(path), map.size());
+    std::map<int, TaughtMotion> recorded;
+    const RouteMap map = readMap(path, &recorded);
+    std::vector<TaughtMotion> motion = completeTaughtMotion(recorded, map.size());
     if (motion.empty())
       throw MapError("map file '" + path + "' holds no taught motion (topic '" + kMapMotionTopic +
                      "'): it was taught without the velocity topic; teach again with teach.launch motion:=<the "
