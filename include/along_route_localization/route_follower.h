@@ -74,7 +74,10 @@ struct FollowerCommand
 ///   w = s * (speed_factor * w_taught[k] + clamp(homing_gain * h_filtered, +-max_homing_turn_rps))
 /// (k the matched keyframe, h_filtered the low-passed homing angle, s the safety scale: 1, slow_factor
 /// after slow_after_frames low-confidence localizations in a row, 0 after stop_after_frames, while lost or
-/// initializing, at the end of the route, and when localizations stopped coming), approached from the
+/// initializing, at the end of the route, and when localizations stopped coming; slow_factor, never 0 for
+/// low confidence, until the first confident localization after start() or after the track began: the
+/// localizer's confidence is low while the camera stands still, so a stop there would never end, and its
+/// loss detection stops the robot if no confident answer comes), approached from the
 /// previous command at no more than max_linear_accel / max_angular_accel: a jump of the matched keyframe or
 /// a stop never makes a jump in the command. The taught turn rate is scaled like the speed so that the
 /// path keeps the taught curvature.
@@ -141,6 +144,7 @@ private:
   double last_input_s_ = 0.0;
   double homing_filtered_rad_ = 0.0;
   int low_frames_ = 0;
+  bool confident_since_start_ = false;  // a confident localization since start() or since the track began
 
   FollowerCommand target_, command_;
   double scale_ = 0.0;
