@@ -25,6 +25,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/exceptions.h>
 #include <rosbag/view.h>
+#include <ros/serialization.h>
 #include <sensor_msgs/image_encodings.h>
 #include <std_msgs/String.h>
 
@@ -240,8 +241,12 @@ struct Connection
 class MapContents
 {
 public:
-  /// file_bytes: the map file's size, an upper bound of the keyframe bytes it holds.
-  MapContents(const std::string& path, uint64_t file_bytes) : path_(path), file_bytes_(file_bytes) {}
+  /// file_bytes: the map file's size, an upper bound of the keyframe bytes it holds. motion: where the
+  /// taught motion goes (null: not read).
+  MapContents(const std::string& path, uint64_t file_bytes, std::map<int, TaughtMotion>* motion)
+    : path_(path), file_bytes_(file_bytes), motion_(motion)
+  {
+  }
 
   void connection(const Record& record)
   {
@@ -268,6 +273,13 @@ public:
         throw MapError("map file " + inQuotes(path_) + ": topic '" + kMapKeyframesTopic + "' has type " + c.type +
                        ", expected sensor_msgs/Image");
       keyframe(cursor);
+    }
+    else if (c.topic == kMapMotionTopic && motion_)
+    {
+      if (c.type != "along_route_localization/KeyframeMotion")
+        throw MapError("map file " + inQuotes(path_) + ": topic '" + kMapMotionTopic + "' has type " + c.type +
+                       ", expected along_route_localization/KeyframeMotion");
+      taughtMotion(record.data);
     }
     else if (c.topic == kMapPreprocessingTopic || c.topic == kMapInfoTopic)
     {
@@ -332,6 +344,29 @@ private:
     early_keyframes_.clear();
   }
 
+  void taughtMotion(const std::string& bytes)
+  {
+    KeyframeMotion recorded;
+    try
+    {
+      ros::serialization::IStream stream(reinterpret_cast<uint8_t*>(const_cast<char*>(bytes.data())),
+                                         static_cast<uint32_t>(bytes.size()));
+      ros::serialization::deserialize(stream, recorded);
+    }
+    catch (const ros::Exception& e)
+    {
+      throw CorruptMap(std::string("a taught motion message is cut short: ") + e.what());
+    }
+    if (!std::isfinite(recorded.linear_mps) || !std::isfinite(recorded.angular_rps) ||
+        !std::isfinite(recorded.distance_m))
+      throw MapError("map file " + inQuotes(path_) + ": the taught motion of keyframe " +
+                     std::to_string(recorded.keyframe) + " is not finite");
+    TaughtMotion& taught = (*motion_)[static_cast<int>(std::min<uint32_t>(recorded.keyframe, 1u << 30))];
+    taught.linear_mps = recorded.linear_mps;
+    taught.angular_rps = recorded.angular_rps;
+    taught.distance_m = recorded.distance_m;
+  }
+
   void keyframe(Cursor& cursor)
   {
     Keyframe keyframe;
@@ -373,6 +408,7 @@ private:
 
   std::string path_;
   uint64_t file_bytes_;
+  std::map<int, TaughtMotion>* motion_;
   std::map<uint32_t, Connection> connections_;
   std::unique_ptr<PreprocessingParams> params_;
   std::string params_text_;
@@ -483,15 +519,17 @@ BagFileHead bagFileHead(const std::string& path)
   return magic.compare(0, head.size(), head) == 0 ? BagFileHead::kCutInHeader : BagFileHead::kNotABag;
 }
 
-RouteMap readMap(const std::string& path)
+RouteMap readMap(const std::string& path, std::map<int, TaughtMotion>* motion)
 {
+  if (motion)
+    motion->clear();
   checkMapFile(path);
   std::ifstream file(path, std::ios::binary);
   file.seekg(0, std::ios::end);
   const uint64_t size = static_cast<uint64_t>(file.tellg());
   file.seekg(13);  // past "#ROSBAG V2.0\n", checked above
   RecordScanner scanner(file, size);
-  MapContents contents(path, size);
+  MapContents contents(path, size, motion);
   try
   {
     Record record;
@@ -571,6 +609,13 @@ sensor_msgs::ImagePtr keyframeMessage(const cv::Mat& preprocessed, int64_t stamp
   cv::Mat wrapped(preprocessed.rows, preprocessed.cols, CV_8UC1, &msg->data[0], msg->step);
   preprocessed.copyTo(wrapped);
   return msg;
+}
+
+std::map<int, TaughtMotion> readTaughtMotion(const std::string& path)
+{
+  std::map<int, TaughtMotion> motion;
+  readMap(path, &motion);
+  return motion;
 }
 
 void writeMap(const std::string& path, const RouteMap& map)
@@ -663,7 +708,7 @@ MapWriter::~MapWriter()
   }
 }
 
-void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe)
+void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe, const KeyframeMotionConstPtr& motion)
 {
   if (closed_)
     throw MapError("map " + inQuotes(path_) + " is closed; no keyframes can be added");
@@ -679,6 +724,7 @@ void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe)
                    " px (" + std::to_string(keyframe->data.size()) + " bytes), but the map's preprocessing makes " +
                    std::to_string(params_.output_width) + "x" + std::to_string(params_.output_height) + " px");
   pending_.push_back(keyframe);
+  pending_motion_.push_back(motion);
 }
 
 void MapWriter::flush()
@@ -727,6 +773,12 @@ void MapWriter::flush()
         bag.write(kMapPreprocessingTopic, bag_time, preprocessing);
       }
       bag.write(kMapKeyframesTopic, bag_time, pending_[i]);
+      if (pending_motion_[i])
+      {
+        KeyframeMotion motion = *pending_motion_[i];
+        motion.keyframe = static_cast<uint32_t>(written_ + i);
+        bag.write(kMapMotionTopic, bag_time, motion);
+      }
     }
     bag.close();
     last_bag_time_ = bag_time;
@@ -739,6 +791,7 @@ void MapWriter::flush()
     throw MapError("cannot rename " + inQuotes(active) + " to " + inQuotes(path_) + ": " + std::strerror(errno));
   written_ += pending_.size();
   pending_.clear();
+  pending_motion_.clear();
   ++flushes_;
 }
 
