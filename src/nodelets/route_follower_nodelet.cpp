@@ -139,6 +139,7 @@ void RouteFollowerNodelet::loadMap(const std::string& path)
   map_error_.clear();
   try
   {
+    requireAbsoluteMapPath(path);
     std::map<int, TaughtMotion> recorded;
     const RouteMap map = readMap(path, &recorded);
     std::vector<TaughtMotion> motion = completeTaughtMotion(recorded, map.size());
