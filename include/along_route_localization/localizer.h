@@ -159,9 +159,10 @@ struct LocalizerParams
   /// true one, sigma(calibration_offset + calibration_slope * c), c being the margin confidence above
   /// (calibratedConfidence; a logistic fit, Platt scaling). scripts/cross_validate fits both on real
   /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
-  /// of your own. calibration_slope 0: publish c itself. A lost track's dead-reckoned answer has 0.
-  float calibration_offset = 0.0f;
-  float calibration_slope = 0.0f;
+  /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. The defaults are
+  /// the fit on all six folds of the shared Nordland line (doc/evaluation_history.md).
+  float calibration_offset = 0.49f;
+  float calibration_slope = 8.144f;
   /// Lost (global search again) when lost_after_frames of the last lost_window_frames informative
   /// frames were low-confidence (LossDetector). Featureless frames do not count, nor do copies of the
   /// last view (the camera standing still): they bring no evidence of another place, and a long stop at
@@ -175,10 +176,10 @@ struct LocalizerParams
   /// featureless plain: the images neither confirm nor contradict the track) the track goes on, with the
   /// low confidence the images give it, its answer dead-reckoned at the cruise speed from the last
   /// confident one until a frame is confident again. Off: every loss detection loses the track.
-  bool loss_needs_contradiction = true;
+  bool loss_needs_contradiction = false;
   /// While lost, answer with the dead-reckoned keyframe (the last tracked one, moved on at the cruise speed
   /// since the loss) with confidence 0, never the unconfirmed guess of the global search. Off: the guess.
-  bool dead_reckon_while_lost = true;
+  bool dead_reckon_while_lost = false;
   int end_of_route_keyframes = 2;     ///< a match this close to the last keyframe reports kEndOfRoute
   /// A gap in the frames' stamps (FrameClock) is frames the camera missed: they go through skipFrames
   /// before the frame after the gap. Off for a camera triggered by distance travelled, whose gaps are stops.

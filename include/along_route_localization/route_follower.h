@@ -41,7 +41,9 @@ struct RouteFollowerParams
   double max_homing_turn_rps = 0.5;     ///< bound of the homing term |gain x angle|, rad/s
   double homing_time_constant_s = 0.3;  ///< first-order low-pass of the homing angle, s (0 = none)
   double speed_factor = 1.0;            ///< forward speed = taught speed x this (and the taught turn rate too)
-  double min_confidence = 0.2;          ///< a localization below this counts as low confidence
+  /// a localization below this counts as low confidence (the localizer publishes the probability of being
+  /// within one keyframe: 0.85 is a margin confidence of about 0.2, its loss detection's threshold)
+  double min_confidence = 0.85;
   int slow_after_frames = 3;            ///< consecutive low-confidence localizations before slowing
   int stop_after_frames = 8;            ///< consecutive low-confidence localizations before stopping
   double slow_factor = 0.5;             ///< fraction of the speed while slowing

@@ -832,13 +832,17 @@ LocalizationResult Localizer::step(const uint8_t* query)
     status_ = match.keyframe >= n - 1 - params_.end_of_route_keyframes ? LocalizationStatus::kEndOfRoute :
                                                                           LocalizationStatus::kTracking;
   }
-  // Lost (contradicted): the answer is where the robot went at the cruise speed since, with confidence 0,
-  // until the global search confirms a place (the frame that confirms it answers there).
-  if (status_ == LocalizationStatus::kLost && lost_position_ >= 0.0 && params_.dead_reckon_while_lost)
+  // Lost: confidence 0 until the global search confirms a place (the frame that confirms it answers there);
+  // the answer is the global search's guess, or (dead_reckon_while_lost) where the robot went at the
+  // cruise speed since the loss.
+  if (status_ == LocalizationStatus::kLost)
   {
-    lost_position_ = std::min(static_cast<double>(n - 1), lost_position_ + lost_speed_);
-    result.keyframe = static_cast<int>(std::lround(lost_position_));
-    result.confidence = 0.0;
+    result.confidence = 0.0;  // contradicted, or unconfirmed: no chance worth a number
+    if (lost_position_ >= 0.0 && params_.dead_reckon_while_lost)
+    {
+      lost_position_ = std::min(static_cast<double>(n - 1), lost_position_ + lost_speed_);
+      result.keyframe = static_cast<int>(std::lround(lost_position_));
+    }
   }
   result.status = status_;
   if (result.keyframe >= 0)

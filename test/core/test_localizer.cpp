@@ -385,6 +385,7 @@ TEST(Localizer, ConfidenceWeighsTheMarginByTheRowsSeen)
   arl::LocalizerParams params;
   params.start_keyframe = -1;
   params.ring_buffer_rows = 20;
+  params.calibration_slope = 0.0f;  // the margin confidence itself (calibratedConfidence: by hand below)
   arl::Localizer localizer(map, params);
   arl::OnlineDtw dtw(params.dtw);
   int weighted_frames = 0;
@@ -1049,6 +1050,7 @@ TEST(Localizer, UnknownPlacesGetLostThenRelocalize)
   {
     arl::LocalizerParams params;
     params.loss_needs_contradiction = needs_contradiction;
+    params.calibration_slope = 0.0f;  // the margin confidence, compared with confidence_threshold
     arl::Localizer localizer(map, params);
     for (int i = 0; i <= 20; ++i)
       localizer.process(keyframeCopy(*map, i));
@@ -1120,7 +1122,10 @@ TEST(Localizer, ContraryEvidenceMovesTheTrackAndLostAnswersAreDeadReckoned)
   // dead-reckoned keyframe (the last tracked one moved on at the cruise speed, 1 keyframe per frame here)
   // with confidence 0, never a guess far away.
   const auto map = syntheticMap(200);
-  arl::Localizer localizer(map, arl::LocalizerParams());
+  arl::LocalizerParams params;
+  params.loss_needs_contradiction = true;
+  params.dead_reckon_while_lost = true;
+  arl::Localizer localizer(map, params);
   int last = -1;
   for (int i = 0; i <= 40; ++i)
     last = localizer.process(keyframeCopy(*map, i)).keyframe;
@@ -1184,7 +1189,9 @@ TEST(Localizer, StandingStillDoesNotMakeTheTrackLost)
   }
   std::printf("standing at the station: %d of 60 frames tracking, lowest confidence %.3f\n", tracking,
               lowest_confidence);
-  EXPECT_LT(lowest_confidence, arl::LocalizerParams().confidence_threshold);  // and says it is unsure
+  const arl::LocalizerParams defaults;
+  EXPECT_LT(lowest_confidence, arl::calibratedConfidence(defaults.confidence_threshold, defaults.calibration_offset,
+                                                         defaults.calibration_slope));  // and says it is unsure
   EXPECT_EQ(60, tracking);
   int right = 0;
   for (int i = 40; i < 60; ++i)
@@ -1687,6 +1694,7 @@ TEST(Localizer, OffTheRouteWithoutContraryEvidenceTheTrackGoesOnUnsure)
   // says it is unsure: few of those answers are confident.
   arl::LocalizerParams params;
   params.loss_needs_contradiction = true;
+  params.calibration_slope = 0.0f;  // the margin confidence, compared with confidence_threshold
   arl::Localizer localizer(summerStretchMap(), params);
   const std::vector<QueryFrame> queries = offRouteQueries();
   int off_route_confident = 0, lost_off_route = 0;
