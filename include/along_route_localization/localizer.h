@@ -180,6 +180,9 @@ struct LocalizerParams
   /// While lost, answer with the dead-reckoned keyframe (the last tracked one, moved on at the cruise speed
   /// since the loss) with confidence 0, never the unconfirmed guess of the global search. Off: the guess.
   bool dead_reckon_while_lost = false;
+  /// With loss_needs_contradiction: another place contradicts the track only when it also beats the track
+  /// by more than chanceMargin (the map's own statistics), not only by its place confidence.
+  bool contradiction_chance_margin = false;
   int end_of_route_keyframes = 2;     ///< a match this close to the last keyframe reports kEndOfRoute
   /// A gap in the frames' stamps (FrameClock) is frames the camera missed: they go through skipFrames
   /// before the frame after the gap. Off for a camera triggered by distance travelled, whose gaps are stops.
@@ -445,6 +448,7 @@ private:
   int chance_rows_ = -1;                 // rows chance_margin_ was measured for (-1: not yet)
   float chance_margin_ = 0.0f;
   bool coasting_ = false;                // weak evidence: answering the dead-reckoned coast_position_
+  bool contradicted_ = false;            // while coasting, this frame's check found another place (published: lost)
   int contradicting_place_ = -1;         // the place the last trackContradicted found
   GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed
   double coast_position_ = 0.0;

@@ -241,7 +241,7 @@ void Localizer::start()
   status_ = LocalizationStatus::kInitializing;
   last_match_ = -1;
   lost_position_ = -1.0;
-  coasting_ = false;
+  coasting_ = contradicted_ = false;
   last_confident_ = -1;
   frames_since_confident_ = 0;
   start_check_ = false;
@@ -776,41 +776,47 @@ LocalizationResult Localizer::step(const uint8_t* query)
     }
     else
       ++frames_since_confident_;
+    bool check_started = false;
     if (loss_.update(confident, result.query_informative && !repeated_query))  // new views only
     {
-      const int track = coasting_ ? static_cast<int>(std::lround(coast_position_)) : match.keyframe;
-      if (!params_.loss_needs_contradiction || trackContradicted(track, coasting_))
-        loseTrack(track);
-      else if (!coasting_ && last_confident_ >= 0)
+      if (!params_.loss_needs_contradiction || last_confident_ < 0)
+        loseTrack(match.keyframe);
+      else if (!coasting_)
       {
-        // Weak evidence: the robot moved on at its cruise speed since the last confident answer.
+        // Weak evidence so far: the robot moved on at its cruise speed since the last confident answer,
+        // and the frames are compared with the whole map from now on (trackContradicted).
         coasting_ = true;
+        check_started = true;
         check_confirmation_.clear();
         coast_position_ = last_confident_ + coastSpeed() * (frames_since_confident_ - 1);
       }
       loss_.clear();  // the detection counts afresh
     }
-    else if (coasting_ && query)
+    contradicted_ = false;
+    if (coasting_ && query)
     {
-      // Weak evidence goes on: each new frame may bring the evidence of another place. Checked every frame,
-      // a wrong place beats the chance margin now and then, so the track moves only once init_confirm_frames
-      // checks in a row were contradicted by places that move along the route like the robot can.
-      const bool contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), true);
-      if (check_confirmation_.update(contradicted ? contradicting_place_ : -1, contradicted, result.query_informative))
+      // Each frame may bring the evidence of another place; the track moves there once init_confirm_frames
+      // checks in a row were contradicted by places that move along the route like the robot can (a
+      // single check's winner is a wrong place now and then).
+      contradicted_ = trackContradicted(static_cast<int>(std::lround(coast_position_)), !check_started);
+      if (check_confirmation_.update(contradicted_ ? contradicting_place_ : -1, contradicted_,
+                                     result.query_informative))
       {
         moveTrackTo(contradicting_place_);
         match.keyframe = contradicting_place_;
         result.keyframe = contradicting_place_;
         moved_track = true;
+        contradicted_ = false;
       }
     }
-    if (coasting_ && status_ != LocalizationStatus::kLost)
+    if (coasting_)
     {
       // A query that repeats the last view: the camera stood still, and so does the dead reckoning.
       if (!repeated_query)
         coast_position_ = std::min(static_cast<double>(n - 1), coast_position_ + coastSpeed());
       match.keyframe = static_cast<int>(std::lround(coast_position_));
-      result.keyframe = match.keyframe;
+      // Contradicted (published lost): the place that contradicts, unless dead_reckon_while_lost.
+      result.keyframe = contradicted_ && !params_.dead_reckon_while_lost ? contradicting_place_ : match.keyframe;
       run_position_ = -1.0;
     }
   }
@@ -835,7 +841,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
   // Lost: confidence 0 until the global search confirms a place (the frame that confirms it answers there);
   // the answer is the global search's guess, or (dead_reckon_while_lost) where the robot went at the
   // cruise speed since the loss.
-  if (status_ == LocalizationStatus::kLost)
+  if (status_ == LocalizationStatus::kLost || contradicted_)
   {
     result.confidence = 0.0;  // contradicted, or unconfirmed: no chance worth a number
     if (lost_position_ >= 0.0 && params_.dead_reckon_while_lost)
@@ -844,7 +850,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
       result.keyframe = static_cast<int>(std::lround(lost_position_));
     }
   }
-  result.status = status_;
+  result.status = contradicted_ ? LocalizationStatus::kLost : status_;  // lost: contradicted, not unconfirmed
   if (result.keyframe >= 0)
   {
     result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
@@ -878,9 +884,9 @@ bool Localizer::trackContradicted(int track_keyframe, bool go_on)
 {
   const int n = static_cast<int>(map_->size());
   const int capacity = static_cast<int>(recent_queries_.size());
-  const int window = std::min(capacity, params_.ring_buffer_rows);
-  if (window < 2 || recent_count_ < 2)
-    return true;  // nothing to weigh: as without the check
+  const int window = params_.ring_buffer_rows;  // grows to K rows, as a global search's window
+  if (capacity < 1 || recent_count_ < 1)
+    return false;  // nothing to weigh
   if (go_on && check_ring_.size() > 0 && check_ring_.capacity() == window && check_ring_.maxWidth() == n)
   {
     // The check goes on (weak evidence, coasting): only the newest frame's whole-map row is new.
@@ -892,7 +898,7 @@ bool Localizer::trackContradicted(int track_keyframe, bool go_on)
     if (check_ring_.capacity() != window || check_ring_.maxWidth() != n)
       check_ring_.resize(window, n);
     check_ring_.clear();
-    for (int i = recent_count_ - std::min(recent_count_, window); i < recent_count_; ++i)
+    for (int i = recent_count_ - std::min(recent_count_, std::min(window, capacity)); i < recent_count_; ++i)
     {
       const RecentQuery& recent = recent_queries_[(recent_next_ - recent_count_ + i + capacity) % capacity];
       computeRow(recent.image.data(), recent.energy, recent.informative, recent.repeated, true, 0, n, &check_ring_);
@@ -900,13 +906,17 @@ bool Localizer::trackContradicted(int track_keyframe, bool go_on)
   }
   const int rows = check_ring_.size();
   const SequenceMatch elsewhere = dtw_.match(check_ring_, 0, n, rows, false, keyframe_run_.data());
+  contradicting_place_ = elsewhere.keyframe;
   if (elsewhere.keyframe < 0 ||
       std::abs(keyframe_run_[elsewhere.keyframe] - keyframe_run_[track_keyframe]) <= params_.dtw.exclusion_radius)
     return false;  // the sequence still ends at the track's place
+  // As a global search confirms a place: its confidence weighed by the distinct views among K rows.
   const double evidence =
-      static_cast<double>(check_ring_.distinctViews(elsewhere.rows)) / std::max(1, elsewhere.rows);
+      std::min(1.0, static_cast<double>(check_ring_.distinctViews(elsewhere.rows)) / std::max(1, window));
   if (matchConfidence(elsewhere, true, evidence) < params_.confidence_threshold)
     return false;  // no place stands out: weak evidence
+  if (!params_.contradiction_chance_margin)
+    return true;
   // The track's own end over the same rows, as the track may choose it.
   const std::vector<float>& accumulated = dtw_.lastAccumulated();
   const int lo = std::max(0, track_keyframe - params_.dtw.exclusion_radius);
@@ -917,7 +927,6 @@ bool Localizer::trackContradicted(int track_keyframe, bool go_on)
   // Better than the track by more than a wrong stretch of this map is by chance (chanceMargin; it uses
   // the DTW too, so it comes after this check's own costs were read).
   const float margin = track_cost - elsewhere.cost;
-  contradicting_place_ = elsewhere.keyframe;
   return margin > chanceMargin(rows);
 }
 

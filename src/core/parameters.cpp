@@ -130,6 +130,8 @@ const std::map<std::string, Setter>& localizerSetters()
     { "motion_prior_cap", LOCALIZER_FIELD(float, motion_prior_cap) },
     { "loss_needs_contradiction",
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->loss_needs_contradiction); } },
+    { "contradiction_chance_margin",
+      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->contradiction_chance_margin); } },
     { "dead_reckon_while_lost",
       [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->dead_reckon_while_lost); } },
     { "run_dead_reckoning",

@@ -3,8 +3,11 @@
 #ifndef ALONG_ROUTE_LOCALIZATION_TEST_CORE_SYNTHETIC_ROUTE_H
 #define ALONG_ROUTE_LOCALIZATION_TEST_CORE_SYNTHETIC_ROUTE_H
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
+#include <random>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -13,6 +16,27 @@
 
 namespace synthetic
 {
+
+/// `count` uniform random bytes, reproducible from `seed` (std::mt19937).
+inline std::vector<uint8_t> randomBytes(size_t count, uint32_t seed)
+{
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::vector<uint8_t> bytes(count);
+  for (auto& b : bytes)
+    b = static_cast<uint8_t>(byte(rng));
+  return bytes;
+}
+
+/// query(x) = image(x - d), the edge replicated where x - d leaves the image (images_to_bag --shift-px).
+inline std::vector<uint8_t> shiftedRight(const std::vector<uint8_t>& image, int width, int height, int d)
+{
+  std::vector<uint8_t> shifted(image.size());
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      shifted[y * width + x] = image[y * width + std::min(width - 1, std::max(0, x - d))];
+  return shifted;
+}
 
 /// Uniform random bytes, reproducible from `seed`.
 inline cv::Mat randomFrame(uint64_t seed, int rows = 32, int cols = 64)

@@ -23,12 +23,15 @@
 #include "along_route_localization/homing.h"
 #include "along_route_localization/image_difference.h"
 #include "along_route_localization/preprocessing.h"
+#include "synthetic_route.h"
 
 #ifndef ALONG_ROUTE_STROMOVKA_DIR
 #define ALONG_ROUTE_STROMOVKA_DIR ""
 #endif
 
 namespace arl = along_route_localization;
+using synthetic::randomBytes;
+using synthetic::shiftedRight;
 
 namespace
 {
@@ -36,25 +39,7 @@ namespace
 constexpr int kWidth = 64;
 constexpr int kHeight = 32;
 
-std::vector<uint8_t> randomBytes(size_t count, uint32_t seed)
-{
-  std::mt19937 rng(seed);
-  std::uniform_int_distribution<int> byte(0, 255);
-  std::vector<uint8_t> bytes(count);
-  for (auto& b : bytes)
-    b = static_cast<uint8_t>(byte(rng));
-  return bytes;
-}
 
-// query(x) = keyframe(x - d), the edge replicated where x - d leaves the image (images_to_bag --shift-px).
-std::vector<uint8_t> shiftedRight(const std::vector<uint8_t>& image, int width, int height, int d)
-{
-  std::vector<uint8_t> shifted(image.size());
-  for (int y = 0; y < height; ++y)
-    for (int x = 0; x < width; ++x)
-      shifted[y * width + x] = image[y * width + std::min(width - 1, std::max(0, x - d))];
-  return shifted;
-}
 
 // A view of width x height bytes whose top-left corner is at (left, top) of a random scene
 // scene_width x scene_height: two views of one scene, with nothing replicated at their edges.

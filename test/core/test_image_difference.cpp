@@ -11,32 +11,17 @@
 
 #include "along_route_localization/image_difference.h"
 #include "along_route_localization/preprocessing.h"
+#include "synthetic_route.h"
 #include "nordland.h"
 
 namespace arl = along_route_localization;
+using synthetic::randomBytes;
+using synthetic::shiftedRight;
 
 namespace
 {
 
-std::vector<uint8_t> randomBytes(size_t count, uint32_t seed)
-{
-  std::mt19937 rng(seed);
-  std::uniform_int_distribution<int> byte(0, 255);
-  std::vector<uint8_t> bytes(count);
-  for (auto& b : bytes)
-    b = static_cast<uint8_t>(byte(rng));
-  return bytes;
-}
 
-// query(x) = keyframe(x - d) with the edge replicated where x - d leaves the image.
-std::vector<uint8_t> shiftedRight(const std::vector<uint8_t>& image, int width, int height, int d)
-{
-  std::vector<uint8_t> shifted(image.size());
-  for (int y = 0; y < height; ++y)
-    for (int x = 0; x < width; ++x)
-      shifted[y * width + x] = image[y * width + std::min(width - 1, std::max(0, x - d))];
-  return shifted;
-}
 
 // The 6 x 2 pair used by the hand calculations below.
 const uint8_t kTinyQuery[12] = { 10, 20, 30, 40, 50, 60,  //
