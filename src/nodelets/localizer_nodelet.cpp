@@ -168,12 +168,11 @@ LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh
   static const std::set<std::string> dynamic = configParameterNames<LocalizerConfig>();
   // Each value checked against its working range first: corrected (a number outside it) or refused (a
   // value that does not parse), and named either way; the others are taken.
-  // The window's rows are dynamic, but min_init_frames must not exceed them: checked with the value given.
-  LocalizerParams base;
-  int rows = 0;
-  const ParameterSpec* rows_spec = findParameter("ring_buffer_rows");
-  if (private_nh.getParam("ring_buffer_rows", rows) && rows_spec->inRange(rows))
-    base.ring_buffer_rows = rows;
+  // The window's rows are dynamic, but min_init_frames must not exceed them: checked with the value given
+  // (when it is valid with the defaults; configCb corrects it otherwise).
+  LocalizerParams base, with_rows;
+  if (private_nh.getParam("ring_buffer_rows", with_rows.ring_buffer_rows) && with_rows.validate().empty())
+    base = with_rows;
   ParameterSet checked;
   checked.localizer = base;
   std::vector<std::pair<std::string, std::string>> given;
@@ -459,11 +458,11 @@ void LocalizerNodelet::useMapIfAccepted()
 
 void LocalizerNodelet::paramsCb(const std_msgs::StringConstPtr& msg)
 {
-  auto params = std::make_shared<PreprocessingParams>();
   std::string error;
-  if (!PreprocessingParams::parse(msg->data, params.get(), &error))
+  const std::shared_ptr<const PreprocessingParams> params = parseAnnouncedParameters(msg->data, &error);
+  if (!params)
   {
-    NODELET_ERROR("Ignoring invalid preprocessing parameters '%s': %s", msg->data.c_str(), error.c_str());
+    NODELET_ERROR("%s", error.c_str());
     return;
   }
   announced_ = params;

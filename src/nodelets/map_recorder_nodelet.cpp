@@ -240,11 +240,11 @@ void MapRecorderNodelet::configCb(MapRecorderConfig& config, uint32_t /*level*/)
 
 void MapRecorderNodelet::paramsCb(const std_msgs::StringConstPtr& msg)
 {
-  auto params = std::make_shared<PreprocessingParams>();
   std::string error;
-  if (!PreprocessingParams::parse(msg->data, params.get(), &error))
+  const std::shared_ptr<const PreprocessingParams> params = parseAnnouncedParameters(msg->data, &error);
+  if (!params)
   {
-    NODELET_ERROR("Ignoring invalid preprocessing parameters '%s': %s", msg->data.c_str(), error.c_str());
+    NODELET_ERROR("%s", error.c_str());
     return;
   }
   announced_params_ = params;

@@ -65,15 +65,6 @@ KeyframePolicy toPolicy(const MapRecorderConfig& config)
 namespace
 {
 
-template <class Value>
-const Value* named(const std::vector<Value>& values, const std::string& name)
-{
-  for (const Value& value : values)
-    if (value.name == name)
-      return &value;
-  return nullptr;
-}
-
 std::string text(double value)
 {
   char buffer[64];
@@ -96,20 +87,20 @@ std::vector<std::string> correctToTable(dynamic_reconfigure::Config* msg, const 
   };
   for (dynamic_reconfigure::IntParameter& value : msg->ints)
   {
-    const dynamic_reconfigure::IntParameter* before = named(previous.ints, value.name);
+    const dynamic_reconfigure::IntParameter* before = findByName(previous.ints, value.name);
     double used = value.value;
     number(value.name, value.value, before ? before->value : value.value, &used);
     value.value = static_cast<int>(used);
   }
   for (dynamic_reconfigure::DoubleParameter& value : msg->doubles)
   {
-    const dynamic_reconfigure::DoubleParameter* before = named(previous.doubles, value.name);
+    const dynamic_reconfigure::DoubleParameter* before = findByName(previous.doubles, value.name);
     number(value.name, value.value, before ? before->value : value.value, &value.value);
   }
   for (dynamic_reconfigure::StrParameter& value : msg->strs)
   {
     const ParameterSpec* spec = findParameter(value.name);
-    const dynamic_reconfigure::StrParameter* before = named(previous.strs, value.name);
+    const dynamic_reconfigure::StrParameter* before = findByName(previous.strs, value.name);
     if (!spec || spec->type != ParameterType::kChoice || !before ||
         std::find(spec->choices.begin(), spec->choices.end(), value.value) != spec->choices.end())
       continue;
@@ -124,19 +115,19 @@ std::vector<std::string> configChanges(const dynamic_reconfigure::Config& before
 {
   std::vector<std::string> changes;
   for (const dynamic_reconfigure::IntParameter& value : after.ints)
-    if (const dynamic_reconfigure::IntParameter* old = named(before.ints, value.name))
+    if (const dynamic_reconfigure::IntParameter* old = findByName(before.ints, value.name))
       if (old->value != value.value)
         changes.push_back(value.name + " " + std::to_string(old->value) + " -> " + std::to_string(value.value));
   for (const dynamic_reconfigure::DoubleParameter& value : after.doubles)
-    if (const dynamic_reconfigure::DoubleParameter* old = named(before.doubles, value.name))
+    if (const dynamic_reconfigure::DoubleParameter* old = findByName(before.doubles, value.name))
       if (old->value != value.value)
         changes.push_back(value.name + " " + text(old->value) + " -> " + text(value.value));
   for (const dynamic_reconfigure::StrParameter& value : after.strs)
-    if (const dynamic_reconfigure::StrParameter* old = named(before.strs, value.name))
+    if (const dynamic_reconfigure::StrParameter* old = findByName(before.strs, value.name))
       if (old->value != value.value)
         changes.push_back(value.name + " " + old->value + " -> " + value.value);
   for (const dynamic_reconfigure::BoolParameter& value : after.bools)
-    if (const dynamic_reconfigure::BoolParameter* old = named(before.bools, value.name))
+    if (const dynamic_reconfigure::BoolParameter* old = findByName(before.bools, value.name))
       if (old->value != value.value)
         changes.push_back(value.name + " " + (old->value ? "true" : "false") + " -> " + (value.value ? "true" : "false"));
   return changes;

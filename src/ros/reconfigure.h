@@ -39,6 +39,17 @@ struct ConfigReview
   std::string rejected;  ///< not empty: the previous config is kept
 };
 
+/// The entry called `name` of one of a dynamic_reconfigure message's lists (ints, doubles, strs, bools),
+/// or nullptr.
+template <class Value>
+const Value* findByName(const std::vector<Value>& values, const std::string& name)
+{
+  for (const Value& value : values)
+    if (value.name == name)
+      return &value;
+  return nullptr;
+}
+
 /// The sentences of one dynamic_reconfigure message (ints, doubles, strs, bools), by name.
 std::vector<std::string> correctToTable(dynamic_reconfigure::Config* msg, const dynamic_reconfigure::Config& previous);
 std::vector<std::string> configChanges(const dynamic_reconfigure::Config& before, const dynamic_reconfigure::Config& after);

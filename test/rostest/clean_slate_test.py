@@ -2,7 +2,8 @@
 """Issue 33: parameters left on the parameter server by an earlier launch (a stale ~normalization: patch,
 ~ring_buffer_rows from a dynparam session) were used by the next launch, whose repeat then refused its map.
 repeat.launch and teach.launch clear their nodelets' private parameters (clear_params) and then load
-their own; a misspelt one in the params_file is named with the parameters the nodelet reads."""
+their own; in the params_file, a misspelt one is named with the parameters the nodelet reads, a bad value is
+refused by name while the good ones are used, and what is logged is what is used."""
 
 import os
 import shutil
@@ -55,7 +56,9 @@ class CleanSlateTest(unittest.TestCase):
         rospy.set_param('/localizer/min_texture_ratio', 0.9)
         params = os.path.join(self.tmp, 'repeat_params.yaml')
         with open(params, 'w') as f:
-            f.write('localizer:\n  max_step: 3\n  ring_bufer_rows: 10\n')
+            # One bad value (method: DTW) and one outside its range among good ones: before, the whole file
+            # was rejected and the defaults used, while a WARN claimed the clamped value was used.
+            f.write('localizer:\n  max_step: 3\n  ring_bufer_rows: 10\n  method: DTW\n  lost_window_frames: 50000\n')
         announced = fx.Collector('/preprocessing_params', String)
         process = self.launch('repeat.launch', 'map:=', 'params_file:=' + params)
         try:
@@ -73,8 +76,14 @@ class CleanSlateTest(unittest.TestCase):
             self.assertIn('It reads: ', warning)
             self.assertIn('min_texture_ratio', warning)
             self.assertNotIn('.h', warning)
-            # What the file set is said once, with the value used.
+            # What the file set is said once, with the value used; the bad value is named, the good ones used.
             self.assertTrue(self.rosout.matching('max_step 2 -> 3', Log.INFO))
+            self.assertTrue(self.rosout.matching("method 'DTW' is not one of dtw | seqslam; keeping dtw", Log.WARN))
+            self.assertEqual(rospy.get_param('/localizer/method'), 'dtw')
+            self.assertTrue(self.rosout.matching('lost_window_frames 50000 is outside 1 .. 10000 frames; using 10000',
+                                                 Log.WARN))
+            self.assertTrue(self.rosout.matching('lost_window_frames 8 -> 10000', Log.INFO))
+            self.assertEqual(rospy.get_param('/localizer/lost_window_frames'), 10000)
         finally:
             self.stop(process)
 

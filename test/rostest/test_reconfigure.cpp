@@ -88,15 +88,6 @@ TEST(Reconfigure, AnUnknownEnumNameIsNamedSoTheNodeletCanRejectIt)
 namespace
 {
 
-template <class Value>
-const Value* named(const std::vector<Value>& values, const std::string& name)
-{
-  for (const Value& value : values)
-    if (value.name == name)
-      return &value;
-  return nullptr;
-}
-
 /// Every parameter of Config (a .cfg) against the table: a row of `group`, the description "doc [range]",
 /// the table's default, no range of its own (dynamic_reconfigure would clamp without a word), and for a
 /// choice the same names. Each row of `group` is in the .cfg when `all_rows`.
@@ -119,7 +110,7 @@ void expectCfgAgreesWithTheTable(arl::ParameterGroup group, bool all_rows)
       if (spec->type == arl::ParameterType::kChoice)
       {
         ASSERT_EQ("str", param.type);
-        EXPECT_EQ(spec->defaultText(), named(description.dflt.strs, param.name)->value);
+        EXPECT_EQ(spec->defaultText(), arl::findByName(description.dflt.strs, param.name)->value);
         size_t listed = 0;
         for (size_t at = param.edit_method.find("'value'"); at != std::string::npos;
              at = param.edit_method.find("'value'", at + 1))
@@ -131,17 +122,17 @@ void expectCfgAgreesWithTheTable(arl::ParameterGroup group, bool all_rows)
       else if (spec->type == arl::ParameterType::kInt)
       {
         ASSERT_EQ("int", param.type);
-        EXPECT_EQ(spec->get_number(defaults), named(description.dflt.ints, param.name)->value);
-        EXPECT_EQ(INT_MIN, named(description.min.ints, param.name)->value) << "a .cfg range: clamped silently";
-        EXPECT_EQ(INT_MAX, named(description.max.ints, param.name)->value) << "a .cfg range: clamped silently";
+        EXPECT_EQ(spec->get_number(defaults), arl::findByName(description.dflt.ints, param.name)->value);
+        EXPECT_EQ(INT_MIN, arl::findByName(description.min.ints, param.name)->value) << "a .cfg range: clamped silently";
+        EXPECT_EQ(INT_MAX, arl::findByName(description.max.ints, param.name)->value) << "a .cfg range: clamped silently";
       }
       else if (spec->type == arl::ParameterType::kDouble)
       {
         ASSERT_EQ("double", param.type);
         const double table = spec->get_number(defaults);
-        EXPECT_NEAR(table, named(description.dflt.doubles, param.name)->value, 1e-6 * std::max(1.0, std::abs(table)));
-        EXPECT_EQ(-std::numeric_limits<double>::infinity(), named(description.min.doubles, param.name)->value);
-        EXPECT_EQ(std::numeric_limits<double>::infinity(), named(description.max.doubles, param.name)->value);
+        EXPECT_NEAR(table, arl::findByName(description.dflt.doubles, param.name)->value, 1e-6 * std::max(1.0, std::abs(table)));
+        EXPECT_EQ(-std::numeric_limits<double>::infinity(), arl::findByName(description.min.doubles, param.name)->value);
+        EXPECT_EQ(std::numeric_limits<double>::infinity(), arl::findByName(description.max.doubles, param.name)->value);
       }
       else
       {
