@@ -72,7 +72,8 @@ std::string LocalizerParams::validate() const
   else if (seqslam.exclusion_radius < 0)
     e << "seqslam exclusion_radius must be >= 0, got " << seqslam.exclusion_radius;
   else if (ring_buffer_rows < min_init_frames)
-    // A global search answers from the min_init_frames-th row on; the window never holds that many.
+    // A global search answers from the min_init_frames-th row on; the window would never hold that many,
+    // and a track once lost would stay lost (Nordland, K = 4 and min_init_frames 5: lost from frame 22 on).
     e << "ring_buffer_rows (" << ring_buffer_rows << ") must be at least min_init_frames (" << min_init_frames
       << "): a global search would never answer";
   else if (lost_after_frames > lost_window_frames)

@@ -184,10 +184,10 @@ TEST(ParameterTable, ValidateRefusesEveryNumberOutsideItsTableRange)
                                                                               << error;
     }
   }
-  // The window's least: 3 rows (with 1 or 2 the Nordland winter drive was lost after its first ~25
-  // frames: within one keyframe 0.8% / 1.9% of 1788 frames, against 99.2% with 30), and no fewer than
-  // min_init_frames, which a global search needs before it answers (4 rows with min_init_frames 5: 35 of
-  // 1788 frames tracked, the others lost).
+  // The window's least: 3 rows, and no fewer than min_init_frames, which a global search needs before it
+  // answers. Nordland winter drive against the summer map (1788 frames), with min_init_frames 5: K = 1,
+  // 2 or 4 tracked the first 22 frames and reported lost on all the others; K = 5 tracked 1711, K = 30
+  // 1785. With min_init_frames 3, K = 3 tracked 656 (within one keyframe 57%, against 99% with K = 30).
   arl::LocalizerParams params;
   params.ring_buffer_rows = 2;
   EXPECT_EQ("ring_buffer_rows must be in 3 .. 1000 frames, got 2", params.validate());
