@@ -9,57 +9,56 @@
 namespace along_route_localization
 {
 
-PreprocessingParams toParams(const PreprocessorConfig& config, std::string* problem)
+namespace
 {
-  PreprocessingParams params;
-  params.output_width = config.output_width;
-  params.output_height = config.output_height;
-  if (!normalizationFromString(config.normalization, &params.normalization))
+
+/// Each parameter of a config message set in `params` through the parameter table, by name: no field is
+/// mapped by hand here. A name that is not one of its choices leaves the field as it was, named in *problem.
+ParameterSet fromMessage(const dynamic_reconfigure::Config& msg, ParameterSet params, std::string* problem)
+{
+  for (const dynamic_reconfigure::IntParameter& value : msg.ints)
+    if (const ParameterSpec* spec = findParameter(value.name))
+      spec->set_number(&params, value.value);
+  for (const dynamic_reconfigure::DoubleParameter& value : msg.doubles)
+    if (const ParameterSpec* spec = findParameter(value.name))
+      spec->set_number(&params, value.value);
+  for (const dynamic_reconfigure::BoolParameter& value : msg.bools)
+    if (const ParameterSpec* spec = findParameter(value.name))
+      spec->set_number(&params, value.value ? 1.0 : 0.0);
+  for (const dynamic_reconfigure::StrParameter& value : msg.strs)
   {
-    params.normalization = NormalizationMethod::kPatch;
-    if (problem)
-      *problem = "normalization must be 'divisive', 'patch' or 'none', got '" + config.normalization + "'";
+    const ParameterSpec* spec = findParameter(value.name);
+    if (spec && spec->type == ParameterType::kChoice && !spec->set_choice(&params, value.value) && problem)
+      *problem = value.name + " '" + value.value + "' is not one of " + spec->rangeText();
   }
-  params.patch_size = config.patch_size;
-  params.min_patch_std = config.min_patch_std;
-  params.filter_window = config.filter_window;
-  params.normalization_strength = config.normalization_strength;
-  params.output_gain = config.output_gain;
-  params.sky_fraction = config.sky_fraction;
   return params;
 }
 
-LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams params, std::string* problem)
+template <class Config>
+ParameterSet fromConfig(const Config& config, ParameterSet params, std::string* problem)
 {
-  if (!sequenceMethodFromString(config.method, &params.method))
-  {
-    params.method = SequenceMethod::kOnlineDtw;
-    if (problem)
-      *problem = "method must be 'dtw' or 'seqslam', got '" + config.method + "'";
-  }
-  params.ring_buffer_rows = config.ring_buffer_rows;
-  params.dtw.max_step = config.max_step;
-  params.max_shift_px = config.max_shift_px;
-  params.contrast_window = config.contrast_window;
-  params.search_radius = config.search_radius;
-  params.confidence_threshold = config.confidence_threshold;
-  params.dtw.stop_penalty = static_cast<float>(config.stop_penalty);
-  params.dtw.skip_penalty = static_cast<float>(config.skip_penalty);
-  params.motion_prior_weight = static_cast<float>(config.motion_prior_weight);
-  params.horizontal_fov_rad = config.horizontal_fov_deg * M_PI / 180.0;
-  params.lost_after_frames = config.lost_after_frames;
-  params.lost_window_frames = config.lost_window_frames;
-  return params;
+  dynamic_reconfigure::Config msg;
+  config.__toMessage__(msg);
+  return fromMessage(msg, params, problem);
+}
+
+}  // namespace
+
+PreprocessingParams toParams(const PreprocessorConfig& config, std::string* problem)
+{
+  return fromConfig(config, ParameterSet(), problem).preprocessing;
+}
+
+LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams base, std::string* problem)
+{
+  ParameterSet params;
+  params.localizer = base;
+  return fromConfig(config, params, problem).localizer;
 }
 
 KeyframePolicy toPolicy(const MapRecorderConfig& config)
 {
-  KeyframePolicy policy;
-  policy.every_nth = config.every_nth;
-  policy.min_time_gap_s = config.min_time_gap;
-  policy.min_appearance_change = config.min_appearance_change;
-  policy.min_distance_m = config.min_distance;
-  return policy;
+  return fromConfig(config, ParameterSet(), nullptr).keyframes;
 }
 
 namespace

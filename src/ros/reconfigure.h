@@ -18,13 +18,14 @@
 namespace along_route_localization
 {
 
-/// Every field of PreprocessingParams comes from the config. dynamic_reconfigure does not hold a string
-/// to its enum: an unknown normalization name becomes patch and, when `problem` is given, is named there.
+/// Every field of PreprocessingParams comes from the config, through the parameter table (each .cfg name is
+/// a table name). dynamic_reconfigure does not hold a string to its enum: an unknown normalization name
+/// leaves the default and, when `problem` is given, is named there.
 PreprocessingParams toParams(const PreprocessorConfig& config, std::string* problem = nullptr);
 
-/// The fields Localizer.cfg exposes come from the config, the others from `base` (static parameters).
-/// horizontal_fov_deg becomes horizontal_fov_rad; an unknown method name becomes dtw and, when `problem`
-/// is given, is named there.
+/// The fields Localizer.cfg exposes come from the config (through the parameter table: horizontal_fov_deg
+/// sets horizontal_fov_rad), the others from `base` (static parameters); an unknown method name leaves
+/// base's and, when `problem` is given, is named there.
 LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams base, std::string* problem = nullptr);
 
 /// The map recorder's keyframe policy from its config.

@@ -47,6 +47,26 @@ TEST(Reconfigure, LocalizerCfgDefaultsAreTheCoreDefaults)
   EXPECT_NEAR(core.horizontal_fov_rad, cfg.horizontal_fov_rad, 1e-6);
 }
 
+TEST(Reconfigure, MapRecorderCfgDefaultsAreTheCoreDefaultsAndEachFieldComesFromTheCfg)
+{
+  const arl::KeyframePolicy core;
+  arl::KeyframePolicy cfg = arl::toPolicy(arl::MapRecorderConfig::__getDefault__());
+  EXPECT_EQ(core.every_nth, cfg.every_nth);
+  EXPECT_DOUBLE_EQ(core.min_time_gap_s, cfg.min_time_gap_s);
+  EXPECT_DOUBLE_EQ(core.min_appearance_change, cfg.min_appearance_change);
+  EXPECT_DOUBLE_EQ(core.min_distance_m, cfg.min_distance_m);
+  arl::MapRecorderConfig config = arl::MapRecorderConfig::__getDefault__();
+  config.every_nth = 3;
+  config.min_time_gap = 0.5;
+  config.min_appearance_change = 7.0;
+  config.min_distance = 2.5;
+  cfg = arl::toPolicy(config);
+  EXPECT_EQ(3, cfg.every_nth);
+  EXPECT_DOUBLE_EQ(0.5, cfg.min_time_gap_s);
+  EXPECT_DOUBLE_EQ(7.0, cfg.min_appearance_change);
+  EXPECT_DOUBLE_EQ(2.5, cfg.min_distance_m);
+}
+
 TEST(Reconfigure, LocalizerFieldsTheCfgDoesNotHaveComeFromTheBase)
 {
   arl::LocalizerParams base;
@@ -74,7 +94,7 @@ TEST(Reconfigure, AnUnknownEnumNameIsNamedSoTheNodeletCanRejectIt)
   EXPECT_EQ("", problem);
   localizer.method = "seqslm";
   arl::toParams(localizer, arl::LocalizerParams(), &problem);
-  EXPECT_EQ("method must be 'dtw' or 'seqslam', got 'seqslm'", problem);
+  EXPECT_EQ("method 'seqslm' is not one of dtw | seqslam", problem);
 
   arl::PreprocessorConfig preprocessor = arl::PreprocessorConfig::__getDefault__();
   problem.clear();
@@ -82,7 +102,7 @@ TEST(Reconfigure, AnUnknownEnumNameIsNamedSoTheNodeletCanRejectIt)
   EXPECT_EQ("", problem);
   preprocessor.normalization = "divisve";
   arl::toParams(preprocessor, &problem);
-  EXPECT_EQ("normalization must be 'divisive', 'patch' or 'none', got 'divisve'", problem);
+  EXPECT_EQ("normalization 'divisve' is not one of patch | divisive | none", problem);
 }
 
 namespace
