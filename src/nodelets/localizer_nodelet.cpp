@@ -188,8 +188,18 @@ LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh
     if (!refused)
       given.emplace_back(name, findParameter(name)->valueText(checked));
   }
+  // Each static value used other than its default, once at INFO, as configCb says each dynamic one.
+  const auto say_used = [this](const LocalizerParams& used) {
+    ParameterSet in_use;
+    in_use.localizer = used;
+    for (const ParameterSpec& spec : parameterTable())
+      if (spec.group == ParameterGroup::kLocalizer && !dynamic.count(spec.name) &&
+          spec.valueText(in_use) != spec.defaultText())
+        NODELET_INFO("%s %s -> %s", spec.name.c_str(), spec.defaultText().c_str(), spec.valueText(in_use).c_str());
+    return used;
+  };
   if (checked.localizer.validate().empty())
-    return checked.localizer;
+    return say_used(checked.localizer);
   // Some are valid only together (seqslam_min_velocity <= seqslam_max_velocity): one at a time, in passes
   // until none is taken (a value refused beside one default may be valid beside another given value);
   // each value never taken is named.
@@ -219,7 +229,7 @@ LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh
     NODELET_ERROR("Ignoring ~%s = %s: %s; keeping %s", given[i].first.c_str(), given[i].second.c_str(),
                   candidate.validate().c_str(), findParameter(given[i].first)->defaultText().c_str());
   }
-  return params;
+  return say_used(params);
 }
 
 void LocalizerNodelet::warnAboutUnreadParameters(const ros::NodeHandle& private_nh)

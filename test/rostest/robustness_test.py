@@ -294,6 +294,9 @@ class RobustnessTest(unittest.TestCase):
                          "~normalization_strength is not read here: it is the preprocessor's"):
                 fx.wait_for(lambda: self.rosout.matching(text), 10, 'a message starting %r' % text)
             self.assertEqual(self.rosout.matching('Ignoring ~seqslam'), [])
+            # What is used is said once: the corrected value, the values taken.
+            self.assertTrue(self.rosout.matching('exclusion_radius 5 -> 1'))
+            self.assertTrue(self.rosout.matching('min_init_frames 5 -> 25'))
             statuses = self.drive_teach_frames(checked, 'localizations from the checked localizer')
             self.assertGreaterEqual(len(statuses), 30)
             first_tracking = statuses.index(Localization.STATUS_TRACKING)
