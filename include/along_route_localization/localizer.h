@@ -37,29 +37,8 @@ enum class SequenceMethod
 std::string toString(SequenceMethod method);
 bool sequenceMethodFromString(const std::string& name, SequenceMethod* method);
 
-/// DtwParams' defaults with first_stop_penalty = 0.05: on real routes the camera often stands still in
-/// both traversals (stations), where every speed through the copies of one view costs the same; the
-/// nominal speed is then the best guess. 0.05 is 1/40 of the clamp of one enhanced cost, so it never
-/// outweighs evidence: half speed (a stop every second frame) pays 0.025 per row.
-inline DtwParams localizerDtwDefaults()
-{
-  DtwParams params;
-  params.first_stop_penalty = 0.05f;
-  // 0.85 rather than 1: a stretch at s = 2 keyframes per frame (the robot drives twice as fast as when
-  // it taught) stays cheaper than losing the track. The lowest value tried (1, 0.9, 0.85, 0.75, 0.5)
-  // that kept the lost-and-found scenarios as they were (at 0.75, 10 more off-route frames tracked):
-  // Nordland frames 0-893, sum of the four scenarios' within-one shares 3.320 -> 3.335; checked on
-  // frames 894-1787: 3.666 -> 3.698.
-  params.skip_penalty = 0.85f;
-  // Keeping a fast speed pays less than speeding up (DTW state F): a long stretch at s no longer pays
-  // 0.85 every frame, which sank the track's confidence until it was lost. 0.4 was the best of 0.85 /
-  // 0.6 / 0.4 on frames 0-893 (sum of the four within-one shares 3.403 / 3.433 / 3.445); frames
-  // 894-1787: 3.718 / 3.770 / 3.764. It keeps an off-route track longer (doc/evaluation_history.md).
-  params.sustained_skip_penalty = 0.4f;
-  return params;
-}
-
-/// Parameters of steps 2-5. Units in the comments; validate() gives the allowed ranges.
+/// Parameters of steps 2-5. Units in the comments; the parameter table (parameters.h) gives each one's
+/// working range, which validate() checks.
 struct LocalizerParams
 {
   SequenceMethod method = SequenceMethod::kOnlineDtw;
@@ -130,7 +109,7 @@ struct LocalizerParams
   /// Chosen on Nordland frames 0-893 among 70 / 100 / 150; 50 and 200 were worse on the whole line
   /// (doc/evaluation_history.md).
   int cruise_speed_frames = 100;
-  DtwParams dtw = localizerDtwDefaults();  ///< s (max_step), stop and skip penalties, exclusion radius
+  DtwParams dtw;                      ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
   /// When the track is lost, the global search starts from the last relocalization_rows queries, compared
   /// again with the whole map, instead of an empty window: they are frames the robot has seen, and the

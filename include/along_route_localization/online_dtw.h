@@ -48,17 +48,20 @@ struct DtwParams
   float stop_penalty = 1.0f;
   /// Cost of a (1,0) stop right after a move (0: free). A small value only breaks ties in favour of the
   /// nominal speed (one keyframe per frame), e.g. through a station where map and query both hold one
-  /// view and every speed fits equally well. The Localizer uses 0.05 (localizerDtwDefaults).
-  float first_stop_penalty = 0.0f;
+  /// view and every speed fits equally well. 0.05 is 1/40 of the clamp of one enhanced cost, so it never
+  /// outweighs evidence: half speed (a stop every second frame) pays 0.025 per row.
+  float first_stop_penalty = 0.05f;
   /// Cost of a (1,1) move right after a move or a skip (0: free). With first_stop_penalty it sets which
   /// speed wins where the views cannot tell speeds apart: cruiseSpeedTieBreak trades one for the other
   /// for a robot that drives slower than it taught.
   float move_penalty = 0.0f;
-  float skip_penalty = 1.0f;   ///< added per keyframe skipped beyond one, for (1,k), k >= 2, speeding up
+  /// Added per keyframe skipped beyond one, for (1,k), k >= 2, speeding up. Below 1, so that a stretch at
+  /// twice the teach speed stays cheaper than losing the track (doc/evaluation_history.md).
+  float skip_penalty = 0.85f;
   /// As skip_penalty, for a (1,k), k >= 2, that follows another such step: a robot that keeps driving
   /// faster than it taught pays on speeding up only when this is 0. Equal to skip_penalty, every skip
   /// pays the same (the plain recursion).
-  float sustained_skip_penalty = 1.0f;
+  float sustained_skip_penalty = 0.4f;
   float missing_cost = 1.0f;   ///< cost of a keyframe a row did not compute (outside its band)
   int exclusion_radius = 5;    ///< keyframes around the best end ignored for second_cost
   /// Subtract from every keyframe its mean cost over the rows in the window that computed it (missing_cost

@@ -1,19 +1,104 @@
-// Parameters by name: the one table mapping the names users type (params.yaml, command line) to the
-// fields of PreprocessingParams and LocalizerParams. The dynamic_reconfigure .cfg files use the same names.
+// Parameters by name: the one table of every parameter users set (params.yaml, command line,
+// dynamic_reconfigure): its name, the field it sets, its working range, unit and meaning. Defaults are the
+// fields' initializers; validate() checks the ranges of this table; the .cfg files are checked against it
+// (test_reconfigure).
 #ifndef ALONG_ROUTE_LOCALIZATION_PARAMETERS_H
 #define ALONG_ROUTE_LOCALIZATION_PARAMETERS_H
 
 #include <string>
 #include <vector>
 
+#include <functional>
+
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/preprocessing.h"
+#include "along_route_localization/route_map.h"
 
 namespace along_route_localization
 {
 
-/// Sets the field called `name` from its text `value`. Returns false with *error set for an unknown
-/// name or a value that does not parse (ranges are checked later by validate()).
+/// Whose parameter: the preprocessor's (stored in the map), the localizer's or the map recorder's.
+enum class ParameterGroup
+{
+  kPreprocessor,
+  kLocalizer,
+  kMapRecorder
+};
+std::string toString(ParameterGroup group);
+
+enum class ParameterType
+{
+  kInt,
+  kDouble,
+  kBool,
+  kChoice  ///< one of a few names
+};
+
+/// Every parameter the table sets, at its default when default-constructed.
+struct ParameterSet
+{
+  PreprocessingParams preprocessing;
+  LocalizerParams localizer;
+  KeyframePolicy keyframes;
+};
+
+/// One row of the parameter table.
+struct ParameterSpec
+{
+  std::string name;
+  ParameterGroup group;
+  ParameterType type;
+  double min, max;                   ///< kInt, kDouble: the working range, both ends included
+  std::string unit;                  ///< of the value as users give it; "" when it has none
+  std::string doc;                   ///< what it is, one line
+  std::vector<std::string> choices;  ///< kChoice: the names it takes
+  std::function<double(const ParameterSet&)> get_number;            ///< kInt, kDouble, kBool (1 / 0)
+  std::function<void(ParameterSet*, double)> set_number;            ///< kInt, kDouble, kBool
+  std::function<std::string(const ParameterSet&)> get_choice;       ///< kChoice
+  std::function<bool(ParameterSet*, const std::string&)> set_choice;///< kChoice; false for another name
+
+  /// The value in `params` as users write it ("30", "0.02", "true", "dtw").
+  std::string valueText(const ParameterSet& params) const;
+  /// The value of a default-constructed ParameterSet.
+  std::string defaultText() const { return valueText(ParameterSet()); }
+  /// "3 .. 1000 frames", "dtw | seqslam", "true | false".
+  std::string rangeText() const;
+  /// Whether a number is in the working range (an integer, for kInt).
+  bool inRange(double value) const;
+};
+
+/// The table, in a fixed order (grouped, then as the .cfg files list them).
+const std::vector<ParameterSpec>& parameterTable();
+/// The row called `name`, or nullptr.
+const ParameterSpec* findParameter(const std::string& name);
+
+/// `given` for `spec` (a number) corrected into its working range: the nearest end of it, rounded for
+/// kInt; `fallback` for a value that is not a number. Returns "" when *used == given, otherwise the
+/// sentence saying so: "ring_buffer_rows -3 is outside 3 .. 1000 frames; using 3".
+std::string correctNumber(const ParameterSpec& spec, double given, double fallback, double* used);
+
+/// Sets `name` from its text as a user gave it: a number outside the working range is set to the nearest
+/// end of it (correctNumber); an unknown name, a value that does not parse or a name not among the
+/// choices leaves every parameter as it was. Returns "" when the value was taken as given, otherwise a
+/// sentence naming the parameter, the value given and the value used; *refused (optional) is set when
+/// nothing was set.
+std::string setParameterChecked(const std::string& name, const std::string& value, ParameterSet* params,
+                                bool* refused = nullptr);
+
+/// validate()'s range check: "" when every parameter of `group` is in its working range, otherwise
+/// "ring_buffer_rows must be in 3 .. 1000 frames, got 1" for the first that is not.
+std::string checkRanges(ParameterGroup group, const ParameterSet& params);
+
+/// The table as text for --help: for each parameter of the groups, "name  default  range unit" then its
+/// doc, indented.
+std::string parameterHelp(const std::vector<ParameterGroup>& groups);
+
+/// The names of the table close to `name` (a misspelling: one edit, or a name containing it), sorted.
+std::vector<std::string> similarParameterNames(const std::string& name);
+
+/// Sets the field called `name` (a preprocessor or localizer parameter) from its text `value`. Returns
+/// false with *error set for an unknown name or a value that does not parse (ranges are checked later by
+/// validate()).
 bool applyParameter(const std::string& name, const std::string& value, PreprocessingParams* preprocessing,
                     LocalizerParams* localizer, std::string* error);
 
@@ -43,6 +128,15 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
 /// on/off (as YAML 1.1 and rosparam read them), 1/0.
 bool applyParameterEntries(const std::string& path, const std::vector<ParameterEntry>& entries,
                            PreprocessingParams* preprocessing, LocalizerParams* localizer, std::string* error);
+
+/// As applyParameterEntries, but one bad entry does not cost the others: an unknown name, a value that
+/// does not parse or a name not among the choices is refused (the parameter keeps its value), a number
+/// outside its working range is corrected (setParameterChecked); each is a sentence in *warnings, naming
+/// the file, line and parameter. Returns false with *error only for a name given twice (which value was
+/// meant is unknown).
+bool applyParameterEntriesChecked(const std::string& path, const std::vector<ParameterEntry>& entries,
+                                  PreprocessingParams* preprocessing, LocalizerParams* localizer,
+                                  std::vector<std::string>* warnings, std::string* error);
 
 /// readParameterFile, then applyParameterEntries.
 bool loadParameterFile(const std::string& path, PreprocessingParams* preprocessing, LocalizerParams* localizer,

@@ -20,6 +20,16 @@ public:
   using std::runtime_error::runtime_error;
 };
 
+/// The map recorder's keyframe policy: a frame becomes a keyframe when every enabled criterion holds
+/// (0 disables one); with all of them 0 every frame is a keyframe.
+struct KeyframePolicy
+{
+  int every_nth = 1;                   ///< keep every n-th frame (1: every frame)
+  double min_time_gap_s = 0.0;         ///< s since the last keyframe, from the header stamps
+  double min_appearance_change = 0.0;  ///< mean |byte difference| to the last keyframe, gray levels
+  double min_distance_m = 0.0;         ///< m travelled since the last keyframe, from odometry
+};
+
 /// Keyframe k occupies bytes [k * w * h, (k + 1) * w * h) of one contiguous buffer, so the image
 /// difference streams through the map without indirection. Each keyframe keeps the stamp of the camera
 /// frame it came from (nanoseconds since the epoch of that clock) and its texture energy.

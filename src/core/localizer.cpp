@@ -1,5 +1,7 @@
 #include "along_route_localization/localizer.h"
+
 #include "along_route_localization/debug_image.h"
+#include "along_route_localization/parameters.h"
 
 #include <algorithm>
 #include <cmath>
@@ -48,89 +50,38 @@ bool sequenceMethodFromString(const std::string& name, SequenceMethod* method)
 
 std::string LocalizerParams::validate() const
 {
+  // The working range of each parameter given by name is the table's; the rest are combinations and
+  // fields set only in code.
+  ParameterSet set;
+  set.localizer = *this;
+  const std::string out_of_range = checkRanges(ParameterGroup::kLocalizer, set);
+  if (!out_of_range.empty())
+    return out_of_range;
   std::ostringstream e;
-  if (ring_buffer_rows < 1 || ring_buffer_rows > 1000)
-    e << "ring_buffer_rows must be in [1, 1000], got " << ring_buffer_rows;
-  else if (max_shift_px < 0 || max_shift_px > 127)
-    e << "max_shift_px must be in [0, 127], got " << max_shift_px;
-  else if (homing_max_shift_px < 0 || homing_max_shift_px > 127)
-    e << "homing_max_shift_px must be in [0, 127], got " << homing_max_shift_px;
-  else if (homing_max_vertical_shift_px < 0 || homing_max_vertical_shift_px > 127)
-    e << "homing_max_vertical_shift_px must be in [0, 127], got " << homing_max_vertical_shift_px;
-  else if (contrast_window < 1 || contrast_window > 10000)
-    e << "contrast_window must be in [1, 10000] keyframes, got " << contrast_window;
-  else if (!(contrast_min_std > 0.0f))
-    e << "contrast_min_std must be > 0, got " << contrast_min_std;
-  else if (!(contrast_clamp > 0.0f) || !std::isfinite(contrast_clamp))
-    e << "contrast_clamp must be finite and > 0, got " << contrast_clamp;
-  else if (!(min_texture_ratio >= 0.0f && min_texture_ratio <= 4.0f))
-    e << "min_texture_ratio must be in [0, 4], got " << min_texture_ratio;
-  else if (!(stationary_ratio >= 0.0f && stationary_ratio <= 1.0f))
-    e << "stationary_ratio must be in [0, 1], got " << stationary_ratio;
-  else if (coarse_search_keyframes < 0)
-    e << "coarse_search_keyframes must be >= 0 (0: never), got " << coarse_search_keyframes;
-  else if (max_jump_ahead < 0 || max_jump_ahead > 1000000)
-    e << "max_jump_ahead must be in [0, 1000000] keyframes, got " << max_jump_ahead;
-  else if (!(motion_prior_weight >= 0.0f && motion_prior_weight <= 10.0f))
-    e << "motion_prior_weight must be in [0, 10], got " << motion_prior_weight;
-  else if (!(motion_prior_cap >= 0.0f))
-    e << "motion_prior_cap must be >= 0 keyframes, got " << motion_prior_cap;
-  else if (!(row_weight_reference > 0.0f))
-    e << "row_weight_reference must be > 0, got " << row_weight_reference;
-  else if (!(row_weight_range >= 0.0f && row_weight_range < 1.0f))
-    e << "row_weight_range must be in [0, 1), got " << row_weight_range;
-  else if (cruise_speed_frames < 0 || cruise_speed_frames > 1000000)
-    e << "cruise_speed_frames must be in [0, 1000000] (0: off), got " << cruise_speed_frames;
-  else if (relocalization_rows < 0 || relocalization_rows > 1000)
-    e << "relocalization_rows must be in [0, 1000] frames, got " << relocalization_rows;
-  else if (search_radius < 1)
-    e << "search_radius must be >= 1 keyframe, got " << search_radius;
-  else if (dtw.max_step < 1 || dtw.max_step > 16)
-    e << "max_step must be in [1, 16], got " << dtw.max_step;
-  else if (!(dtw.stop_penalty >= 0.0f) || !(dtw.skip_penalty >= 0.0f) || !(dtw.first_stop_penalty >= 0.0f) ||
-           !(dtw.move_penalty >= 0.0f) || !(dtw.sustained_skip_penalty >= 0.0f) ||
-           !std::isfinite(dtw.stop_penalty + dtw.skip_penalty + dtw.first_stop_penalty + dtw.move_penalty +
-                          dtw.sustained_skip_penalty))
-    e << "stop_penalty, first_stop_penalty, move_penalty, skip_penalty and sustained_skip_penalty must be "
-         "finite and >= 0";
-  else if (!std::isfinite(dtw.missing_cost) || !std::isfinite(seqslam.missing_cost))
-    e << "missing_cost must be finite";
-  else if (dtw.exclusion_radius < 0 || dtw.exclusion_radius > 1000000)
-    e << "exclusion_radius must be in [0, 1000000] keyframes, got " << dtw.exclusion_radius;
-  else if (seqslam.sequence_length < 1 || seqslam.sequence_length > 1000)
-    e << "seqslam sequence_length must be in [1, 1000], got " << seqslam.sequence_length;
-  else if (!(seqslam.velocity_step > 0.0f) || !(seqslam.min_velocity <= seqslam.max_velocity) ||
-           !std::isfinite(seqslam.min_velocity) || !std::isfinite(seqslam.max_velocity))
-    e << "seqslam velocities need velocity_step > 0 and finite min_velocity <= max_velocity";
-  else if ((seqslam.max_velocity - seqslam.min_velocity) / seqslam.velocity_step > 1000.0f ||
-           std::abs(seqslam.min_velocity) > 100.0f || std::abs(seqslam.max_velocity) > 100.0f)
-    e << "seqslam velocities must lie in [-100, 100] keyframes per frame, at most 1000 steps apart, got "
-      << seqslam.min_velocity << " to " << seqslam.max_velocity << " by " << seqslam.velocity_step;
+  if (!std::isfinite(contrast_min_std + contrast_clamp + row_weight_reference + row_weight_range + min_texture_ratio +
+                     stationary_ratio + motion_prior_weight + motion_prior_cap + confidence_scale) ||
+      !std::isfinite(confidence_threshold + horizontal_fov_rad))
+    e << "every parameter must be a finite number";
+  else if (!(dtw.move_penalty >= 0.0f) || !std::isfinite(dtw.move_penalty))
+    e << "move_penalty must be finite and >= 0, got " << dtw.move_penalty;
+  else if (!std::isfinite(seqslam.missing_cost))
+    e << "seqslam missing_cost must be finite";
+  else if (!(seqslam.min_velocity <= seqslam.max_velocity))
+    e << "seqslam_min_velocity (" << seqslam.min_velocity << ") must not exceed seqslam_max_velocity ("
+      << seqslam.max_velocity << ")";
+  else if ((seqslam.max_velocity - seqslam.min_velocity) / seqslam.velocity_step > 1000.0f)
+    e << "seqslam velocities must be at most 1000 steps apart, got " << seqslam.min_velocity << " to "
+      << seqslam.max_velocity << " by " << seqslam.velocity_step;
   else if (seqslam.exclusion_radius < 0)
     e << "seqslam exclusion_radius must be >= 0, got " << seqslam.exclusion_radius;
-  else if (start_keyframe < -1)
-    e << "start_keyframe must be a keyframe index (>= 0) or -1 (unknown: search the whole map), got "
-      << start_keyframe;
-  else if (min_init_frames < 1 || min_init_frames > 10000)
-    e << "min_init_frames must be in [1, 10000], got " << min_init_frames;
-  else if (!(confidence_threshold >= 0.0 && confidence_threshold <= 1.0))
-    e << "confidence_threshold must be in [0, 1], got " << confidence_threshold;
-  else if (!(confidence_scale > 0.0f) || !std::isfinite(confidence_scale))
-    e << "confidence_scale must be finite and > 0, got " << confidence_scale;
-  else if (!(std::abs(calibration_offset) <= 50.0f) || !(calibration_slope >= 0.0f && calibration_slope <= 1000.0f))
-    e << "calibration_offset must be in [-50, 50] and calibration_slope in [0, 1000] (0: no calibration), got "
-      << calibration_offset << " and " << calibration_slope;
-  else if (init_confirm_frames < 1 || init_confirm_frames > 10000)
-    e << "init_confirm_frames must be in [1, 10000], got " << init_confirm_frames;
-  else if (lost_window_frames > 10000)  // the dynamic_reconfigure range
-    e << "lost_window_frames must be at most 10000, got " << lost_window_frames;
-  else if (lost_after_frames < 1 || lost_after_frames > lost_window_frames)
+  else if (ring_buffer_rows < min_init_frames)
+    // A global search answers from the min_init_frames-th row on; the window would never hold that many,
+    // and a track once lost would stay lost (Nordland, K = 4 and min_init_frames 5: lost from frame 22 on).
+    e << "ring_buffer_rows (" << ring_buffer_rows << ") must be at least min_init_frames (" << min_init_frames
+      << "): a global search would never answer";
+  else if (lost_after_frames > lost_window_frames)
     e << "lost_after_frames must be in [1, lost_window_frames = " << lost_window_frames << "], got "
       << lost_after_frames;
-  else if (end_of_route_keyframes < 0)
-    e << "end_of_route_keyframes must be >= 0, got " << end_of_route_keyframes;
-  else if (!(horizontal_fov_rad > 0.0 && horizontal_fov_rad < M_PI))
-    e << "horizontal_fov_rad must be in (0, pi), got " << horizontal_fov_rad;
   return e.str();
 }
 

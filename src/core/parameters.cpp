@@ -2,19 +2,20 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <functional>
 #include <map>
 #include <set>
 #include <sstream>
+#include <type_traits>
+#include <utility>
 
 namespace along_route_localization
 {
 
 namespace
 {
-
-using Setter = std::function<bool(const std::string&, PreprocessingParams*, LocalizerParams*)>;
 
 bool parseDouble(const std::string& text, double* value)
 {
@@ -53,121 +54,292 @@ bool parseBool(const std::string& text, bool* value)
   return true;
 }
 
-template <typename T>
-Setter number(T PreprocessingParams::*field)
+using Group = ParameterGroup;
+
+/// A row for a number or boolean field; `field` returns a reference to it in a ParameterSet.
+template <typename Field>
+ParameterSpec numberRow(const char* name, Group group, double min, double max, const char* unit, const char* doc,
+                        Field field)
 {
-  return [field](const std::string& v, PreprocessingParams* p, LocalizerParams*) {
-    double d;
-    int i;
-    if (std::is_integral<T>::value)
-      return parseInt(v, &i) && ((p->*field = static_cast<T>(i)), true);
-    return parseDouble(v, &d) && ((p->*field = static_cast<T>(d)), true);
+  using T = typename std::remove_reference<decltype(field(std::declval<ParameterSet&>()))>::type;
+  ParameterSpec spec;
+  spec.name = name;
+  spec.group = group;
+  spec.type = std::is_same<T, bool>::value ? ParameterType::kBool :
+              std::is_integral<T>::value   ? ParameterType::kInt :
+                                             ParameterType::kDouble;
+  spec.min = spec.type == ParameterType::kBool ? 0.0 : min;
+  spec.max = spec.type == ParameterType::kBool ? 1.0 : max;
+  spec.unit = unit;
+  spec.doc = doc;
+  spec.get_number = [field](const ParameterSet& p) {
+    return static_cast<double>(field(const_cast<ParameterSet&>(p)));  // field() only reads here
   };
+  spec.set_number = [field](ParameterSet* p, double value) {
+    field(*p) = std::is_integral<T>::value && !std::is_same<T, bool>::value ? static_cast<T>(std::lround(value)) :
+                                                                              static_cast<T>(value);
+  };
+  return spec;
 }
 
-template <typename T, typename Getter>
-Setter localizerNumber(Getter get)
+ParameterSpec boolRow(const char* name, Group group, const char* doc, std::function<bool&(ParameterSet&)> field)
 {
-  return [get](const std::string& v, PreprocessingParams*, LocalizerParams* l) {
-    double d;
-    int i;
-    if (std::is_integral<T>::value)
-      return parseInt(v, &i) && ((get(l) = static_cast<T>(i)), true);
-    return parseDouble(v, &d) && ((get(l) = static_cast<T>(d)), true);
-  };
+  return numberRow(name, group, 0.0, 1.0, "", doc, field);
 }
 
-#define LOCALIZER_FIELD(type, expr) localizerNumber<type>([](LocalizerParams* l) -> type& { return l->expr; })
-
-// Preprocessing (step 1): the preprocessor's parameters, stored in the map.
-const std::map<std::string, Setter>& preprocessingSetters()
+ParameterSpec choiceRow(const char* name, Group group, const char* doc, std::vector<std::string> choices,
+                        std::function<std::string(const ParameterSet&)> get,
+                        std::function<bool(ParameterSet*, const std::string&)> set)
 {
-  static const std::map<std::string, Setter> table = {
-    { "output_width", number(&PreprocessingParams::output_width) },
-    { "output_height", number(&PreprocessingParams::output_height) },
-    { "normalization",
-      [](const std::string& v, PreprocessingParams* p, LocalizerParams*) { return normalizationFromString(v, &p->normalization); } },
-    { "patch_size", number(&PreprocessingParams::patch_size) },
-    { "min_patch_std", number(&PreprocessingParams::min_patch_std) },
-    { "filter_window", number(&PreprocessingParams::filter_window) },
-    { "normalization_strength", number(&PreprocessingParams::normalization_strength) },
-    { "output_gain", number(&PreprocessingParams::output_gain) },
-    { "sky_fraction", number(&PreprocessingParams::sky_fraction) },
-  };
-  return table;
+  ParameterSpec spec;
+  spec.name = name;
+  spec.group = group;
+  spec.type = ParameterType::kChoice;
+  spec.min = spec.max = 0.0;
+  spec.doc = doc;
+  spec.choices = std::move(choices);
+  spec.get_choice = std::move(get);
+  spec.set_choice = std::move(set);
+  return spec;
 }
 
-// Steps 2-5: the localizer's parameters.
-const std::map<std::string, Setter>& localizerSetters()
+#define FIELD(expr) [](ParameterSet& p) -> decltype((p.expr)) { return p.expr; }
+
+std::vector<ParameterSpec> makeTable()
 {
-  static const std::map<std::string, Setter> table = {
-    { "method",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return sequenceMethodFromString(v, &l->method); } },
-    { "cost_function",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return costFunctionFromString(v, &l->cost_function); } },
-    { "ring_buffer_rows", LOCALIZER_FIELD(int, ring_buffer_rows) },
-    { "max_shift_px", LOCALIZER_FIELD(int, max_shift_px) },
-    { "homing_max_shift_px", LOCALIZER_FIELD(int, homing_max_shift_px) },
-    { "homing_max_vertical_shift_px", LOCALIZER_FIELD(int, homing_max_vertical_shift_px) },
-    { "subpixel_shift",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->subpixel_shift); } },
-    { "contrast_window", LOCALIZER_FIELD(int, contrast_window) },
-    { "contrast_min_std", LOCALIZER_FIELD(float, contrast_min_std) },
-    { "contrast_clamp", LOCALIZER_FIELD(float, contrast_clamp) },
-    { "row_weight_reference", LOCALIZER_FIELD(float, row_weight_reference) },
-    { "row_weight_range", LOCALIZER_FIELD(float, row_weight_range) },
-    { "min_texture_ratio", LOCALIZER_FIELD(float, min_texture_ratio) },
-    { "stationary_ratio", LOCALIZER_FIELD(float, stationary_ratio) },
-    { "first_stop_penalty", LOCALIZER_FIELD(float, dtw.first_stop_penalty) },
-    { "energy_normalized_cost",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->energy_normalized_cost); } },
-    { "search_radius", LOCALIZER_FIELD(int, search_radius) },
-    { "coarse_search_keyframes", LOCALIZER_FIELD(int, coarse_search_keyframes) },
-    { "max_jump_ahead", LOCALIZER_FIELD(int, max_jump_ahead) },
-    { "cruise_speed_frames", LOCALIZER_FIELD(int, cruise_speed_frames) },
-    { "relocalization_rows", LOCALIZER_FIELD(int, relocalization_rows) },
-    { "motion_prior_weight", LOCALIZER_FIELD(float, motion_prior_weight) },
-    { "motion_prior_cap", LOCALIZER_FIELD(float, motion_prior_cap) },
-    { "loss_needs_contradiction",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->loss_needs_contradiction); } },
-    { "contradiction_chance_margin",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->contradiction_chance_margin); } },
-    { "dead_reckon_while_lost",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->dead_reckon_while_lost); } },
-    { "run_dead_reckoning",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->run_dead_reckoning); } },
-    { "fill_frame_gaps",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->fill_frame_gaps); } },
-    { "max_step", LOCALIZER_FIELD(int, dtw.max_step) },
-    { "stop_penalty", LOCALIZER_FIELD(float, dtw.stop_penalty) },
-    { "skip_penalty", LOCALIZER_FIELD(float, dtw.skip_penalty) },
-    { "sustained_skip_penalty", LOCALIZER_FIELD(float, dtw.sustained_skip_penalty) },
-    { "missing_cost", LOCALIZER_FIELD(float, dtw.missing_cost) },
-    { "exclusion_radius", LOCALIZER_FIELD(int, dtw.exclusion_radius) },
-    { "column_centering",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->dtw.column_centering); } },
-    { "seqslam_sequence_length", LOCALIZER_FIELD(int, seqslam.sequence_length) },
-    { "seqslam_min_velocity", LOCALIZER_FIELD(float, seqslam.min_velocity) },
-    { "seqslam_max_velocity", LOCALIZER_FIELD(float, seqslam.max_velocity) },
-    { "seqslam_velocity_step", LOCALIZER_FIELD(float, seqslam.velocity_step) },
-    { "start_keyframe", LOCALIZER_FIELD(int, start_keyframe) },
-    { "min_init_frames", LOCALIZER_FIELD(int, min_init_frames) },
-    { "confidence_threshold", LOCALIZER_FIELD(double, confidence_threshold) },
-    { "confidence_scale", LOCALIZER_FIELD(float, confidence_scale) },
-    { "calibration_offset", LOCALIZER_FIELD(float, calibration_offset) },
-    { "calibration_slope", LOCALIZER_FIELD(float, calibration_slope) },
-    { "lost_after_frames", LOCALIZER_FIELD(int, lost_after_frames) },
-    { "lost_window_frames", LOCALIZER_FIELD(int, lost_window_frames) },
-    { "init_confirm_frames", LOCALIZER_FIELD(int, init_confirm_frames) },
-    { "end_of_route_keyframes", LOCALIZER_FIELD(int, end_of_route_keyframes) },
-    { "horizontal_fov_deg",
-      [](const std::string& v, PreprocessingParams*, LocalizerParams* l) {
-        double deg;
-        return parseDouble(v, &deg) && ((l->horizontal_fov_rad = deg * M_PI / 180.0), true);
-      } },
-    { "parallel", [](const std::string& v, PreprocessingParams*, LocalizerParams* l) { return parseBool(v, &l->parallel); } },
-  };
-  return table;
+  const Group pre = Group::kPreprocessor, loc = Group::kLocalizer, rec = Group::kMapRecorder;
+  const double kMaxInt = 2e9;
+  std::vector<ParameterSpec> t;
+  // Step 1, the preprocessor (cfg/Preprocessor.cfg); stored in the map.
+  t.push_back(numberRow("output_width", pre, 8, 1024, "px", "Width of the preprocessed image",
+                        FIELD(preprocessing.output_width)));
+  t.push_back(numberRow("output_height", pre, 4, 1024, "px", "Height of the preprocessed image",
+                        FIELD(preprocessing.output_height)));
+  t.push_back(choiceRow(
+      "normalization", pre, "Normalization: patch (eq. 1), divisive (eq. 3) or none (grayscale and resize only)",
+      { "patch", "divisive", "none" }, [](const ParameterSet& p) { return toString(p.preprocessing.normalization); },
+      [](ParameterSet* p, const std::string& v) { return normalizationFromString(v, &p->preprocessing.normalization); }));
+  t.push_back(numberRow("patch_size", pre, 2, 256, "px",
+                        "eq. 1: side of the square patches (corrected to divide the output size)",
+                        FIELD(preprocessing.patch_size)));
+  t.push_back(numberRow("min_patch_std", pre, 0, 128, "gray levels",
+                        "eq. 1: patches with a smaller std become flat 128", FIELD(preprocessing.min_patch_std)));
+  t.push_back(numberRow("filter_window", pre, 3, 63, "px",
+                        "eq. 3: side of the Gaussian window (odd; an even value is corrected)",
+                        FIELD(preprocessing.filter_window)));
+  t.push_back(numberRow("normalization_strength", pre, 0.0001, 100, "per gray level", "eq. 3: s",
+                        FIELD(preprocessing.normalization_strength)));
+  t.push_back(numberRow("output_gain", pre, 0.1, 255, "bytes per unit",
+                        "Bytes per unit of normalized intensity: byte = 128 + gain * z",
+                        FIELD(preprocessing.output_gain)));
+  t.push_back(numberRow("sky_fraction", pre, 0, 0.95, "", "Share of the top rows set to 0 (sky blackening)",
+                        FIELD(preprocessing.sky_fraction)));
+
+  // Steps 2-5, the localizer: first those of cfg/Localizer.cfg (dynamic), then the static ones.
+  t.push_back(choiceRow(
+      "method", loc, "Sequence matching: dtw (online DTW, this package) or seqslam (straight-line baseline)",
+      { "dtw", "seqslam" }, [](const ParameterSet& p) { return toString(p.localizer.method); },
+      [](ParameterSet* p, const std::string& v) { return sequenceMethodFromString(v, &p->localizer.method); }));
+  t.push_back(numberRow("ring_buffer_rows", loc, 3, 1000, "frames",
+                        "K: frames in the sequence window (ring-buffer rows; at least min_init_frames)", FIELD(localizer.ring_buffer_rows)));
+  t.push_back(numberRow("max_step", loc, 1, 16, "keyframes per frame",
+                        "s: most keyframes advanced per frame, DTW steps (1,0)..(1,s)", FIELD(localizer.dtw.max_step)));
+  t.push_back(numberRow("max_shift_px", loc, 0, 127, "px",
+                        "m: horizontal shift search range in the preprocessed image (corrected to leave a compared "
+                        "strip)",
+                        FIELD(localizer.max_shift_px)));
+  t.push_back(numberRow("homing_max_shift_px", loc, 0, 127, "px",
+                        "Horizontal shift range of the homing estimate (homing.h), px of the preprocessed image",
+                        FIELD(localizer.homing_max_shift_px)));
+  t.push_back(numberRow("homing_max_vertical_shift_px", loc, 0, 127, "px",
+                        "Vertical shift range per column of the homing estimate (camera pitch)",
+                        FIELD(localizer.homing_max_vertical_shift_px)));
+  t.push_back(numberRow("contrast_window", loc, 1, 10000, "keyframes",
+                        "n: eq. 2 half window of the contrast enhancement", FIELD(localizer.contrast_window)));
+  t.push_back(numberRow("search_radius", loc, 1, 100000, "keyframes",
+                        "Keyframes computed on each side of the predicted match while tracking (at least max_step)",
+                        FIELD(localizer.search_radius)));
+  t.push_back(numberRow("confidence_threshold", loc, 0, 1, "", "Below it a frame counts as low-confidence",
+                        FIELD(localizer.confidence_threshold)));
+  t.push_back(numberRow("stop_penalty", loc, 0, 10, "cost", "Cost of a DTW (1,0) stop that follows another stop",
+                        FIELD(localizer.dtw.stop_penalty)));
+  t.push_back(numberRow("skip_penalty", loc, 0, 10, "cost",
+                        "Cost added per keyframe skipped beyond one when speeding up", FIELD(localizer.dtw.skip_penalty)));
+  t.push_back(numberRow("motion_prior_weight", loc, 0, 10, "cost per row per keyframe",
+                        "Cost between a match and the predicted position while tracking (0: off)",
+                        FIELD(localizer.motion_prior_weight)));
+  {
+    ParameterSpec fov = numberRow("horizontal_fov_deg", loc, 1, 179, "deg",
+                                  "Camera horizontal field of view, for the homing angle",
+                                  FIELD(localizer.horizontal_fov_rad));
+    fov.get_number = [](const ParameterSet& p) { return p.localizer.horizontal_fov_rad * 180.0 / M_PI; };
+    fov.set_number = [](ParameterSet* p, double deg) { p->localizer.horizontal_fov_rad = deg * M_PI / 180.0; };
+    t.push_back(fov);
+  }
+  t.push_back(numberRow("lost_after_frames", loc, 1, 10000, "frames",
+                        "Lost (global search) when this many of the last lost_window_frames informative frames were "
+                        "low-confidence",
+                        FIELD(localizer.lost_after_frames)));
+  t.push_back(numberRow("lost_window_frames", loc, 1, 10000, "frames",
+                        "Informative frames looked back on for lost_after_frames (at least it)",
+                        FIELD(localizer.lost_window_frames)));
+  // Static: read once at start (params file, ~name, --set).
+  t.push_back(choiceRow(
+      "cost_function", loc, "Image difference: sad (sum of absolute differences) or census", { "sad", "census" },
+      [](const ParameterSet& p) { return toString(p.localizer.cost_function); },
+      [](ParameterSet* p, const std::string& v) { return costFunctionFromString(v, &p->localizer.cost_function); }));
+  t.push_back(boolRow("subpixel_shift", loc, "Measure the shift to a fraction of a pixel",
+                      FIELD(localizer.subpixel_shift)));
+  t.push_back(numberRow("contrast_min_std", loc, 0.0001, 10, "cost", "Floor of the eq. 2 std",
+                        FIELD(localizer.contrast_min_std)));
+  t.push_back(numberRow("contrast_clamp", loc, 0.1, 100, "", "Limit of |enhanced cost| (eq. 2)",
+                        FIELD(localizer.contrast_clamp)));
+  t.push_back(numberRow("row_weight_reference", loc, 0.1, 100, "std",
+                        "Peak (in eq. 2 stds) at which a tracking row weighs 1", FIELD(localizer.row_weight_reference)));
+  t.push_back(numberRow("row_weight_range", loc, 0, 0.99, "",
+                        "Row weights lie in 1 -/+ this (0: every row weighs 1)", FIELD(localizer.row_weight_range)));
+  t.push_back(numberRow("min_texture_ratio", loc, 0, 4, "",
+                        "Featureless below this share of the map's median keyframe texture energy",
+                        FIELD(localizer.min_texture_ratio)));
+  t.push_back(numberRow("stationary_ratio", loc, 0, 1, "",
+                        "Same view (camera stood still) below this share of the map's median keyframe change (0: off)",
+                        FIELD(localizer.stationary_ratio)));
+  t.push_back(numberRow("first_stop_penalty", loc, 0, 10, "cost",
+                        "Cost of a DTW (1,0) stop right after a move: breaks ties toward the nominal speed",
+                        FIELD(localizer.dtw.first_stop_penalty)));
+  t.push_back(numberRow("sustained_skip_penalty", loc, 0, 10, "cost",
+                        "As skip_penalty, for a skip that follows another skip", FIELD(localizer.dtw.sustained_skip_penalty)));
+  t.push_back(numberRow("missing_cost", loc, 0, 10, "cost", "Cost of a keyframe a row did not compute (outside its band)",
+                        FIELD(localizer.dtw.missing_cost)));
+  // At least 1: with 0 the second-best end is a neighbour of the best, the margin vanishes and the track is
+  // reported lost nearly all the time (Nordland winter drive: 1647 of 1788 frames, against none with 5).
+  t.push_back(numberRow("exclusion_radius", loc, 1, 1000000, "keyframes",
+                        "Keyframes around the best end ignored for the second-best cost", FIELD(localizer.dtw.exclusion_radius)));
+  t.push_back(boolRow("column_centering", loc, "Subtract each keyframe's mean cost over the window before the DTW",
+                      FIELD(localizer.dtw.column_centering)));
+  t.push_back(boolRow("energy_normalized_cost", loc,
+                      "Divide each SAD by the two images' texture energies (step 2b)",
+                      FIELD(localizer.energy_normalized_cost)));
+  t.push_back(numberRow("coarse_search_keyframes", loc, 0, kMaxInt, "keyframes",
+                        "Maps of at least this many keyframes are searched globally on halved images (0: never)",
+                        FIELD(localizer.coarse_search_keyframes)));
+  t.push_back(numberRow("max_jump_ahead", loc, 0, 1000000, "keyframes",
+                        "While tracking, the new match lies at most max_step + this ahead of the last",
+                        FIELD(localizer.max_jump_ahead)));
+  t.push_back(numberRow("cruise_speed_frames", loc, 0, 1000000, "frames",
+                        "Frames over which the robot's cruise speed is averaged (0: the nominal speed)",
+                        FIELD(localizer.cruise_speed_frames)));
+  t.push_back(numberRow("relocalization_rows", loc, 0, 1000, "frames",
+                        "Recent frames a global search after a loss starts from (0: an empty window)",
+                        FIELD(localizer.relocalization_rows)));
+  t.push_back(numberRow("motion_prior_cap", loc, 0, 1000, "keyframes",
+                        "Distance beyond which the motion prior's cost stays flat", FIELD(localizer.motion_prior_cap)));
+  t.push_back(boolRow("run_dead_reckoning", loc,
+                      "Through a run of identical keyframes, report the keyframe reached at the entry speed",
+                      FIELD(localizer.run_dead_reckoning)));
+  t.push_back(boolRow("fill_frame_gaps", loc, "Frames missed (a gap in the stamps) become rows without evidence",
+                      FIELD(localizer.fill_frame_gaps)));
+  t.push_back(numberRow("seqslam_sequence_length", loc, 2, 1000, "frames", "SeqSLAM baseline: ds, frames per sequence",
+                        FIELD(localizer.seqslam.sequence_length)));
+  t.push_back(numberRow("seqslam_min_velocity", loc, -100, 100, "keyframes per frame",
+                        "SeqSLAM baseline: slowest velocity tried", FIELD(localizer.seqslam.min_velocity)));
+  t.push_back(numberRow("seqslam_max_velocity", loc, -100, 100, "keyframes per frame",
+                        "SeqSLAM baseline: fastest velocity tried (at least seqslam_min_velocity)",
+                        FIELD(localizer.seqslam.max_velocity)));
+  t.push_back(numberRow("seqslam_velocity_step", loc, 0.001, 100, "keyframes per frame",
+                        "SeqSLAM baseline: step between velocities tried", FIELD(localizer.seqslam.velocity_step)));
+  t.push_back(numberRow("start_keyframe", loc, -1, kMaxInt, "keyframe",
+                        "Where the robot starts (-1: unknown, a global search first)", FIELD(localizer.start_keyframe)));
+  t.push_back(numberRow("min_init_frames", loc, 1, 10000, "frames", "Frames before the first global answer",
+                        FIELD(localizer.min_init_frames)));
+  t.push_back(numberRow("init_confirm_frames", loc, 1, 10000, "frames",
+                        "Consecutive confident, advancing global answers before tracking starts",
+                        FIELD(localizer.init_confirm_frames)));
+  t.push_back(numberRow("confidence_scale", loc, 0.001, 1000, "cost per row",
+                        "Cost margin per row that maps to confidence 1 - 1/e", FIELD(localizer.confidence_scale)));
+  t.push_back(numberRow("calibration_offset", loc, -50, 50, "",
+                        "The published confidence is sigma(offset + slope * c), the probability of being within one "
+                        "keyframe (fitted by cross_validate)", FIELD(localizer.calibration_offset)));
+  t.push_back(numberRow("calibration_slope", loc, 0, 1000, "",
+                        "Slope of the confidence calibration (0: publish the margin confidence c itself)",
+                        FIELD(localizer.calibration_slope)));
+  t.push_back(boolRow("loss_needs_contradiction", loc,
+                      "When the loss detection fires, coast and lose the track only on evidence for another place",
+                      FIELD(localizer.loss_needs_contradiction)));
+  t.push_back(boolRow("contradiction_chance_margin", loc,
+                      "Another place contradicts the track only by more than this map's chance margin",
+                      FIELD(localizer.contradiction_chance_margin)));
+  t.push_back(boolRow("dead_reckon_while_lost", loc,
+                      "While lost, answer the dead-reckoned keyframe instead of the global search's guess",
+                      FIELD(localizer.dead_reckon_while_lost)));
+  t.push_back(numberRow("end_of_route_keyframes", loc, 0, 1000000, "keyframes",
+                        "A match this close to the last keyframe reports end_of_route",
+                        FIELD(localizer.end_of_route_keyframes)));
+  t.push_back(boolRow("parallel", loc, "Spread global searches over the cores", FIELD(localizer.parallel)));
+
+  // The map recorder's keyframe policy (cfg/MapRecorder.cfg).
+  t.push_back(numberRow("every_nth", rec, 1, 1000, "frames", "Keep every n-th frame (1: every frame)",
+                        FIELD(keyframes.every_nth)));
+  t.push_back(numberRow("min_time_gap", rec, 0, 3600, "s",
+                        "Minimum time since the last keyframe, from the header stamps (0: off)",
+                        FIELD(keyframes.min_time_gap_s)));
+  t.push_back(numberRow("min_appearance_change", rec, 0, 255, "gray levels",
+                        "Minimum mean absolute byte difference to the last keyframe (0: off)",
+                        FIELD(keyframes.min_appearance_change)));
+  t.push_back(numberRow("min_distance", rec, 0, 10000, "m",
+                        "Minimum distance travelled since the last keyframe, from the odom topic (0: off)",
+                        FIELD(keyframes.min_distance_m)));
+  return t;
+}
+
+#undef FIELD
+
+/// Parses `text` for `spec` without a range check.
+bool parseValue(const ParameterSpec& spec, const std::string& text, double* number)
+{
+  bool flag = false;
+  switch (spec.type)
+  {
+    case ParameterType::kInt:
+    {
+      int i = 0;
+      if (!parseInt(text, &i))
+        return false;
+      *number = i;
+      return true;
+    }
+    case ParameterType::kDouble:
+      return parseDouble(text, number);
+    case ParameterType::kBool:
+      if (!parseBool(text, &flag))
+        return false;
+      *number = flag ? 1.0 : 0.0;
+      return true;
+    case ParameterType::kChoice:
+      break;
+  }
+  return false;
+}
+
+bool setUnchecked(const ParameterSpec& spec, const std::string& text, ParameterSet* params)
+{
+  if (spec.type == ParameterType::kChoice)
+    return spec.set_choice(params, text);
+  double number = 0.0;
+  if (!parseValue(spec, text, &number))
+    return false;
+  spec.set_number(params, number);
+  return true;
+}
+
+std::string formatNumber(double value, bool integer = false)
+{
+  char text[64];
+  if (integer && std::abs(value) < 1e15)
+    std::snprintf(text, sizeof(text), "%.0f", value);
+  else
+    std::snprintf(text, sizeof(text), "%.6g", value);
+  return text;
 }
 
 std::string trim(const std::string& s)
@@ -181,37 +353,223 @@ std::string trim(const std::string& s)
 
 }  // namespace
 
+std::string toString(ParameterGroup group)
+{
+  switch (group)
+  {
+    case ParameterGroup::kPreprocessor:
+      return "preprocessor";
+    case ParameterGroup::kLocalizer:
+      return "localizer";
+    case ParameterGroup::kMapRecorder:
+      return "map_recorder";
+  }
+  return "unknown";
+}
+
+std::string ParameterSpec::valueText(const ParameterSet& params) const
+{
+  switch (type)
+  {
+    case ParameterType::kChoice:
+      return get_choice(params);
+    case ParameterType::kBool:
+      return get_number(params) != 0.0 ? "true" : "false";
+    default:
+      return formatNumber(get_number(params), type == ParameterType::kInt);
+  }
+}
+
+std::string ParameterSpec::rangeText() const
+{
+  if (type == ParameterType::kBool)
+    return "true | false";
+  std::string text;
+  if (type == ParameterType::kChoice)
+  {
+    for (const std::string& choice : choices)
+      text += (text.empty() ? "" : " | ") + choice;
+    return text;
+  }
+  text = formatNumber(min, type == ParameterType::kInt) + " .. " + formatNumber(max, type == ParameterType::kInt);
+  return unit.empty() ? text : text + " " + unit;
+}
+
+bool ParameterSpec::inRange(double value) const
+{
+  return value >= min && value <= max && (type != ParameterType::kInt || value == std::floor(value));
+}
+
+const std::vector<ParameterSpec>& parameterTable()
+{
+  static const std::vector<ParameterSpec> table = makeTable();
+  return table;
+}
+
+const ParameterSpec* findParameter(const std::string& name)
+{
+  for (const ParameterSpec& spec : parameterTable())
+    if (spec.name == name)
+      return &spec;
+  return nullptr;
+}
+
+std::string correctNumber(const ParameterSpec& spec, double given, double fallback, double* used)
+{
+  if (spec.inRange(given))
+  {
+    *used = given;
+    return "";
+  }
+  std::ostringstream sentence;
+  const bool integer = spec.type == ParameterType::kInt;
+  sentence << spec.name << " " << formatNumber(given, integer && given == std::floor(given));
+  if (!std::isfinite(given))
+  {
+    *used = fallback;
+    sentence << " is not a number in " << spec.rangeText() << "; keeping " << formatNumber(fallback, integer);
+    return sentence.str();
+  }
+  *used = std::max(spec.min, std::min(spec.max, spec.type == ParameterType::kInt ? std::round(given) : given));
+  sentence << " is outside " << spec.rangeText() << "; using " << formatNumber(*used, integer);
+  return sentence.str();
+}
+
+std::string setParameterChecked(const std::string& name, const std::string& value, ParameterSet* params,
+                                bool* refused)
+{
+  if (refused)
+    *refused = true;
+  const ParameterSpec* spec = findParameter(name);
+  if (!spec)
+  {
+    std::string sentence = "unknown parameter '" + name + "' refused";
+    const std::vector<std::string> similar = similarParameterNames(name);
+    if (!similar.empty())
+    {
+      sentence += " (did you mean";
+      for (const std::string& other : similar)
+        sentence += " " + other;
+      sentence += "?)";
+    }
+    return sentence;
+  }
+  const std::string keeping = "; keeping " + spec->valueText(*params);
+  if (spec->type == ParameterType::kChoice)
+  {
+    if (!spec->set_choice(params, value))
+      return name + " '" + value + "' is not one of " + spec->rangeText() + keeping;
+    if (refused)
+      *refused = false;
+    return "";
+  }
+  double number = 0.0;
+  if (!parseValue(*spec, value, &number))
+    return name + " '" + value + "' is not " +
+           (spec->type == ParameterType::kBool ? std::string("true or false") :
+            spec->type == ParameterType::kInt  ? "an integer in " + spec->rangeText() :
+                                                 "a number in " + spec->rangeText()) +
+           keeping;
+  double used = number;
+  const std::string sentence = correctNumber(*spec, number, spec->get_number(*params), &used);
+  spec->set_number(params, used);
+  if (refused)
+    *refused = false;
+  return sentence;
+}
+
+std::string checkRanges(ParameterGroup group, const ParameterSet& params)
+{
+  for (const ParameterSpec& spec : parameterTable())
+  {
+    if (spec.group != group || spec.type == ParameterType::kChoice || spec.type == ParameterType::kBool)
+      continue;
+    const double value = spec.get_number(params);
+    if (!spec.inRange(value))
+      return spec.name + " must be in " + spec.rangeText() + ", got " +
+             formatNumber(value, spec.type == ParameterType::kInt && value == std::floor(value));
+  }
+  return "";
+}
+
+std::string parameterHelp(const std::vector<ParameterGroup>& groups)
+{
+  std::ostringstream text;
+  for (const ParameterGroup group : groups)
+  {
+    text << "  " << toString(group) << ":\n";
+    for (const ParameterSpec& spec : parameterTable())
+    {
+      if (spec.group != group)
+        continue;
+      text << "    " << spec.name << " = " << spec.defaultText() << "  (" << spec.rangeText() << ")\n"
+           << "        " << spec.doc << "\n";
+    }
+  }
+  return text.str();
+}
+
+std::vector<std::string> similarParameterNames(const std::string& name)
+{
+  // Levenshtein distance up to 2, or one name containing the other.
+  const auto distance = [](const std::string& a, const std::string& b) {
+    std::vector<size_t> row(b.size() + 1);
+    for (size_t j = 0; j <= b.size(); ++j)
+      row[j] = j;
+    for (size_t i = 1; i <= a.size(); ++i)
+    {
+      size_t diagonal = row[0];
+      row[0] = i;
+      for (size_t j = 1; j <= b.size(); ++j)
+      {
+        const size_t above = row[j];
+        row[j] = std::min({ row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1) });
+        diagonal = above;
+      }
+    }
+    return row[b.size()];
+  };
+  std::vector<std::string> similar;
+  for (const ParameterSpec& spec : parameterTable())
+    if (distance(name, spec.name) <= 2 ||
+        (name.size() >= 4 && (spec.name.find(name) != std::string::npos || name.find(spec.name) != std::string::npos)))
+      similar.push_back(spec.name);
+  std::sort(similar.begin(), similar.end());
+  return similar;
+}
+
 bool applyParameter(const std::string& name, const std::string& value, PreprocessingParams* preprocessing,
                     LocalizerParams* localizer, std::string* error)
 {
-  const Setter* setter = nullptr;
-  for (const std::map<std::string, Setter>* table : { &preprocessingSetters(), &localizerSetters() })
-  {
-    const auto it = table->find(name);
-    if (it != table->end())
-      setter = &it->second;
-  }
-  if (!setter)
+  const ParameterSpec* spec = findParameter(name);
+  if (!spec || spec->group == ParameterGroup::kMapRecorder)
   {
     *error = "unknown parameter '" + name + "'";
     return false;
   }
-  if (!(*setter)(value, preprocessing, localizer))
+  ParameterSet params;
+  params.preprocessing = *preprocessing;
+  params.localizer = *localizer;
+  if (!setUnchecked(*spec, value, &params))
   {
     *error = "parameter '" + name + "' cannot take the value '" + value + "'";
     return false;
   }
+  *preprocessing = params.preprocessing;
+  *localizer = params.localizer;
   return true;
 }
 
 namespace
 {
 
-std::vector<std::string> namesOf(const std::map<std::string, Setter>& setters)
+std::vector<std::string> namesOf(ParameterGroup group)
 {
   std::vector<std::string> names;
-  for (const auto& entry : setters)
-    names.push_back(entry.first);
+  for (const ParameterSpec& spec : parameterTable())
+    if (spec.group == group)
+      names.push_back(spec.name);
+  std::sort(names.begin(), names.end());
   return names;
 }
 
@@ -219,12 +577,12 @@ std::vector<std::string> namesOf(const std::map<std::string, Setter>& setters)
 
 std::vector<std::string> preprocessingParameterNames()
 {
-  return namesOf(preprocessingSetters());
+  return namesOf(ParameterGroup::kPreprocessor);
 }
 
 std::vector<std::string> localizerParameterNames()
 {
-  return namesOf(localizerSetters());
+  return namesOf(ParameterGroup::kLocalizer);
 }
 
 std::vector<std::string> parameterNames()
@@ -299,6 +657,40 @@ bool applyParameterEntries(const std::string& path, const std::vector<ParameterE
       return false;
     }
   }
+  return true;
+}
+
+bool applyParameterEntriesChecked(const std::string& path, const std::vector<ParameterEntry>& entries,
+                                  PreprocessingParams* preprocessing, LocalizerParams* localizer,
+                                  std::vector<std::string>* warnings, std::string* error)
+{
+  std::map<std::string, int> set_on_line;
+  for (const ParameterEntry& entry : entries)
+  {
+    const auto earlier = set_on_line.emplace(entry.name, entry.line);
+    if (!earlier.second)
+    {
+      *error = path + ":" + std::to_string(entry.line) + ": '" + entry.name + "' is already set on line " +
+               std::to_string(earlier.first->second) + "; give each parameter once";
+      return false;
+    }
+  }
+  ParameterSet params;
+  params.preprocessing = *preprocessing;
+  params.localizer = *localizer;
+  for (const ParameterEntry& entry : entries)
+  {
+    const ParameterSpec* spec = findParameter(entry.name);
+    std::string sentence;
+    if (spec && spec->group == ParameterGroup::kMapRecorder)
+      sentence = "'" + entry.name + "' is the map recorder's parameter; ignored here";
+    else
+      sentence = setParameterChecked(entry.name, entry.value, &params);
+    if (!sentence.empty())
+      warnings->push_back(path + ":" + std::to_string(entry.line) + ": " + sentence);
+  }
+  *preprocessing = params.preprocessing;
+  *localizer = params.localizer;
   return true;
 }
 

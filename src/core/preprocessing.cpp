@@ -1,5 +1,7 @@
 #include "along_route_localization/preprocessing.h"
 
+#include "along_route_localization/parameters.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -67,25 +69,21 @@ int PreprocessingParams::skyRows() const
 
 std::string PreprocessingParams::validate() const
 {
+  // Each field's working range is the parameter table's; here the combinations.
+  ParameterSet set;
+  set.preprocessing = *this;
+  const std::string out_of_range = checkRanges(ParameterGroup::kPreprocessor, set);
+  if (!out_of_range.empty())
+    return out_of_range;
   std::ostringstream error;
-  if (output_width < 8 || output_width > 1024)
-    error << "output_width must be in [8, 1024] px, got " << output_width;
-  else if (output_height < 4 || output_height > 1024)
-    error << "output_height must be in [4, 1024] px, got " << output_height;
+  if (!std::isfinite(min_patch_std + normalization_strength + output_gain + sky_fraction))
+    error << "every parameter must be a finite number";
   else if (normalization == NormalizationMethod::kPatch &&
-           (patch_size < 2 || output_width % patch_size != 0 || output_height % patch_size != 0))
-    error << "patch_size must be >= 2 and divide output_width (" << output_width << ") and output_height ("
-          << output_height << "), got " << patch_size;
-  else if (!(min_patch_std >= 0.0 && min_patch_std <= 128.0))
-    error << "min_patch_std must be in [0, 128] gray levels, got " << min_patch_std;
-  else if (filter_window < 3 || filter_window % 2 == 0 || filter_window > 63)
-    error << "filter_window must be odd and in [3, 63] px, got " << filter_window;
-  else if (!(normalization_strength > 0.0 && normalization_strength <= 100.0))
-    error << "normalization_strength must be in (0, 100] per gray level, got " << normalization_strength;
-  else if (!(output_gain > 0.0 && output_gain <= 255.0))
-    error << "output_gain must be in (0, 255], got " << output_gain;
-  else if (!(sky_fraction >= 0.0 && sky_fraction < 1.0))
-    error << "sky_fraction must be in [0, 1), got " << sky_fraction;
+           (output_width % patch_size != 0 || output_height % patch_size != 0))
+    error << "patch_size must divide output_width (" << output_width << ") and output_height (" << output_height
+          << "), got " << patch_size;
+  else if (filter_window % 2 == 0)
+    error << "filter_window must be odd, got " << filter_window;
   return error.str();
 }
 

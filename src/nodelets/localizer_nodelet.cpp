@@ -9,7 +9,7 @@
 // Services:   ~load_map (along_route_localization/LoadMap)
 // Parameters: ~map (absolute path, loaded at start), ~debug_image_scale (8), ~min_rate / ~max_rate (Hz,
 //             expected input rate for diagnostics); cfg/Localizer.cfg (dynamic, applied between
-//             frames); any other core parameter by its parameters.h name (static, e.g. ~cost_function)
+//             frames); any other localizer parameter of the parameter table (static, e.g. ~cost_function)
 // Test hook: ~report_input_buffer (false): publishes on ~input_buffer (std_msgs/String) the address of
 //             the pixels the core read, "<pointer> @ <sec>.<nsec>", for the zero-copy test only.
 #include <algorithm>
@@ -169,29 +169,49 @@ int largestShiftFor(int width)
 LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh)
 {
   // Every core parameter not in Localizer.cfg can still be set once, under the same name that
-  // params.yaml and localize_offline use (parameters.h), e.g. ~cost_function, ~min_texture_ratio.
+  // params.yaml and localize_offline use (the parameter table), e.g. ~cost_function, ~min_texture_ratio.
   // Localizer.cfg's own parameters are dynamic_reconfigure's (onInit).
   static const std::set<std::string> dynamic = configParameterNames<LocalizerConfig>();
+  // Each value checked against its working range first: corrected (a number outside it) or refused (a
+  // value that does not parse), and named either way; the others are taken.
+  // The window's rows are dynamic, but min_init_frames must not exceed them: checked with the value given
+  // (when it is valid with the defaults; configCb corrects it otherwise).
+  LocalizerParams base, with_rows;
+  if (private_nh.getParam("ring_buffer_rows", with_rows.ring_buffer_rows) && with_rows.validate().empty())
+    base = with_rows;
+  ParameterSet checked;
+  checked.localizer = base;
   std::vector<std::pair<std::string, std::string>> given;
   for (const std::string& name : localizerParameterNames())
   {
     XmlRpc::XmlRpcValue value;
-    if (!dynamic.count(name) && private_nh.getParam(name, value))
-      given.emplace_back(name, toText(value));
+    if (dynamic.count(name) || !private_nh.getParam(name, value))
+      continue;
+    bool refused = false;
+    const std::string sentence = setParameterChecked(name, toText(value), &checked, &refused);
+    if (!sentence.empty())
+      NODELET_WARN("~%s", sentence.c_str());
+    if (!refused)
+      given.emplace_back(name, findParameter(name)->valueText(checked));
   }
+  // Each static value used other than its default, once at INFO, as configCb says each dynamic one.
+  const auto say_used = [this](const LocalizerParams& used) {
+    ParameterSet in_use;
+    in_use.localizer = used;
+    for (const ParameterSpec& spec : parameterTable())
+      if (spec.group == ParameterGroup::kLocalizer && !dynamic.count(spec.name) &&
+          spec.valueText(in_use) != spec.defaultText())
+        NODELET_INFO("%s %s -> %s", spec.name.c_str(), spec.defaultText().c_str(), spec.valueText(in_use).c_str());
+    return used;
+  };
+  if (checked.localizer.validate().empty())
+    return say_used(checked.localizer);
+  // Some are valid only together (seqslam_min_velocity <= seqslam_max_velocity): one at a time, in passes
+  // until none is taken (a value refused beside one default may be valid beside another given value);
+  // each value never taken is named.
   PreprocessingParams ignored;  // the preprocessor's business
   std::string error;
-  // All together first: some are valid only together (seqslam_min_velocity <= seqslam_max_velocity).
-  LocalizerParams all;
-  bool parsed = true;
-  for (const auto& entry : given)
-    parsed = applyParameter(entry.first, entry.second, &ignored, &all, &error) && parsed;
-  if (parsed && all.validate().empty())
-    return all;
-  // Otherwise one at a time, so that one bad value does not cost the others, in passes until none is
-  // taken (a value refused beside one default may be valid beside another given value); each value
-  // never taken is named.
-  LocalizerParams params;
+  LocalizerParams params = base;
   std::vector<bool> taken(given.size(), false);
   for (bool progress = true; progress;)
   {
@@ -210,15 +230,12 @@ LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh
   for (size_t i = 0; i < given.size(); ++i)
   {
     LocalizerParams candidate = params;
-    if (taken[i])
+    if (taken[i] || !applyParameter(given[i].first, given[i].second, &ignored, &candidate, &error))
       continue;
-    if (!applyParameter(given[i].first, given[i].second, &ignored, &candidate, &error))
-      NODELET_ERROR("Ignoring ~%s: %s; it keeps the default", given[i].first.c_str(), error.c_str());
-    else
-      NODELET_ERROR("Ignoring ~%s = %s: %s; it keeps the default", given[i].first.c_str(), given[i].second.c_str(),
-                    candidate.validate().c_str());
+    NODELET_ERROR("Ignoring ~%s = %s: %s; keeping %s", given[i].first.c_str(), given[i].second.c_str(),
+                  candidate.validate().c_str(), findParameter(given[i].first)->defaultText().c_str());
   }
-  return params;
+  return say_used(params);
 }
 
 void LocalizerNodelet::warnAboutUnreadParameters(const ros::NodeHandle& private_nh)
@@ -237,9 +254,7 @@ void LocalizerNodelet::warnAboutUnreadParameters(const ros::NodeHandle& private_
                    "preprocessing from the map",
                    name.c_str());
     else
-      NODELET_WARN("~%s is not a parameter of the localizer and is ignored (misspelt?). It reads the core "
-                   "parameters of parameters.h and %s",
-                   name.c_str(), joined(own).c_str());
+      NODELET_WARN("%s", unreadSentence(name, "localizer", read).c_str());
   }
 }
 
@@ -267,8 +282,8 @@ void LocalizerNodelet::onInit()
   requested_params_ = staticParams(private_nh);
 
   last_valid_config_ = LocalizerConfig::__getDefault__();
-  for (const std::string& sentence : outOfRangeParameters<LocalizerConfig>(private_nh))
-    NODELET_ERROR("%s", sentence.c_str());
+  for (const std::string& sentence : mistypedParameters<LocalizerConfig>(private_nh))
+    NODELET_WARN("%s", sentence.c_str());
   reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<LocalizerConfig>>(config_mutex_, private_nh);
   reconfigure_server_->setCallback([this](LocalizerConfig& config, uint32_t level) { configCb(config, level); });
   {
@@ -317,36 +332,47 @@ void LocalizerNodelet::onInit()
 
 void LocalizerNodelet::configCb(LocalizerConfig& config, uint32_t /*level*/)
 {
-  // Corrections, so the panel shows the values in use.
+  // Corrections, so the panel shows the values in use: each value into its working range, then the
+  // combinations.
+  std::vector<std::string> corrections = correctToTable(config, last_valid_config_);
+  char sentence[256];
   if (config.search_radius < config.max_step)
   {
-    NODELET_WARN("search_radius %d is below max_step %d; using %d", config.search_radius, config.max_step,
-                 config.max_step);
+    std::snprintf(sentence, sizeof(sentence), "search_radius %d is below max_step %d; using %d", config.search_radius,
+                  config.max_step, config.max_step);
+    corrections.push_back(sentence);
     config.search_radius = config.max_step;
+  }
+  if (config.ring_buffer_rows < requested_params_.min_init_frames)
+  {
+    std::snprintf(sentence, sizeof(sentence),
+                  "ring_buffer_rows %d is below min_init_frames %d (a global search would never answer); using %d",
+                  config.ring_buffer_rows, requested_params_.min_init_frames, requested_params_.min_init_frames);
+    corrections.push_back(sentence);
+    config.ring_buffer_rows = requested_params_.min_init_frames;
   }
   if (config.lost_window_frames < config.lost_after_frames)
   {
-    NODELET_WARN("lost_window_frames %d is below lost_after_frames %d; using %d", config.lost_window_frames,
-                 config.lost_after_frames, config.lost_after_frames);
+    std::snprintf(sentence, sizeof(sentence), "lost_window_frames %d is below lost_after_frames %d; using %d",
+                  config.lost_window_frames, config.lost_after_frames, config.lost_after_frames);
+    corrections.push_back(sentence);
     config.lost_window_frames = config.lost_after_frames;
   }
   if (map_width_ > 0 && config.max_shift_px > largestShiftFor(map_width_))
   {
-    NODELET_WARN("max_shift_px %d leaves nothing to compare in %d px wide images; using %d", config.max_shift_px,
-                 map_width_, largestShiftFor(map_width_));
+    std::snprintf(sentence, sizeof(sentence), "max_shift_px %d leaves nothing to compare in %d px wide images; using %d",
+                  config.max_shift_px, map_width_, largestShiftFor(map_width_));
+    corrections.push_back(sentence);
     config.max_shift_px = largestShiftFor(map_width_);
   }
   std::string invalid;
   const LocalizerParams params = toParams(config, requested_params_, &invalid);
   if (invalid.empty())
     invalid = params.validate();
-  if (!invalid.empty())
-  {
-    NODELET_ERROR("Rejected localizer parameters: %s; keeping the previous ones", invalid.c_str());
-    config = last_valid_config_;
+  const ConfigReview review = reviewConfig(config, last_valid_config_, std::move(corrections), invalid);
+  logConfigReview(review, getName(), "localizer parameters");
+  if (!review.rejected.empty())
     return;
-  }
-  last_valid_config_ = config;
   requested_params_ = params;
   params_changed_ = true;
 }
@@ -470,11 +496,11 @@ void LocalizerNodelet::useMapIfAccepted()
 
 void LocalizerNodelet::paramsCb(const std_msgs::StringConstPtr& msg)
 {
-  auto params = std::make_shared<PreprocessingParams>();
   std::string error;
-  if (!PreprocessingParams::parse(msg->data, params.get(), &error))
+  const std::shared_ptr<const PreprocessingParams> params = parseAnnouncedParameters(msg->data, &error);
+  if (!params)
   {
-    NODELET_ERROR("Ignoring invalid preprocessing parameters '%s': %s", msg->data.c_str(), error.c_str());
+    NODELET_ERROR("%s", error.c_str());
     return;
   }
   announced_ = params;

@@ -52,6 +52,7 @@
 #include "ros/diagnostics.h"
 #include "ros/map_io.h"
 #include "ros/private_parameters.h"
+#include "ros/reconfigure.h"
 
 namespace along_route_localization
 {
@@ -68,15 +69,6 @@ private:
     kRecording,
     kPaused,
     kFinished
-  };
-
-  /// A frame becomes a keyframe when every enabled criterion holds; 0 disables one.
-  struct KeyframePolicy
-  {
-    int every_nth = 1;
-    double min_time_gap_s = 0.0;
-    double min_appearance_change = 0.0;  // mean |byte difference| to the last keyframe
-    double min_distance_m = 0.0;
   };
 
   void onInit() override;
@@ -123,6 +115,7 @@ private:
   boost::recursive_mutex config_mutex_;
   std::shared_ptr<dynamic_reconfigure::Server<MapRecorderConfig>> reconfigure_server_;
   KeyframePolicy policy_;
+  MapRecorderConfig last_valid_config_ = MapRecorderConfig::__getDefault__();
 
   // Used only from the nodelet's single-threaded callback queue (image, params, odom, services).
   std::shared_ptr<const PreprocessingParams> announced_params_;
@@ -178,8 +171,7 @@ void MapRecorderNodelet::onInit()
   std::set<std::string> read = configParameterNames<MapRecorderConfig>();
   read.insert(own.begin(), own.end());
   for (const std::string& name : unreadParameters(private_nh, read))
-    NODELET_WARN("~%s is not a parameter of the map recorder and is ignored (misspelt?). It reads %s",
-                 name.c_str(), joined(read).c_str());
+    NODELET_WARN("%s", unreadSentence(name, "map recorder", read).c_str());
   private_nh.param("map", map_path_, std::string());
   bool autostart = true;
   private_nh.param("autostart", autostart, autostart);
@@ -205,8 +197,8 @@ void MapRecorderNodelet::onInit()
     queue_size = 100;
   }
 
-  for (const std::string& sentence : outOfRangeParameters<MapRecorderConfig>(private_nh))
-    NODELET_ERROR("%s", sentence.c_str());
+  for (const std::string& sentence : mistypedParameters<MapRecorderConfig>(private_nh))
+    NODELET_WARN("%s", sentence.c_str());
   reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<MapRecorderConfig>>(config_mutex_, private_nh);
   reconfigure_server_->setCallback([this](MapRecorderConfig& config, uint32_t level) { configCb(config, level); });
   updater_ = std::make_shared<diagnostic_updater::Updater>(nh, private_nh, getName());
@@ -294,19 +286,19 @@ std::string MapRecorderNodelet::lossSentence() const
 
 void MapRecorderNodelet::configCb(MapRecorderConfig& config, uint32_t /*level*/)
 {
-  policy_.every_nth = config.every_nth;
-  policy_.min_time_gap_s = config.min_time_gap;
-  policy_.min_appearance_change = config.min_appearance_change;
-  policy_.min_distance_m = config.min_distance;
+  std::vector<std::string> corrections = correctToTable(config, last_valid_config_);
+  const ConfigReview review = reviewConfig(config, last_valid_config_, std::move(corrections), "");
+  logConfigReview(review, getName(), "keyframe policy");
+  policy_ = toPolicy(config);
 }
 
 void MapRecorderNodelet::paramsCb(const std_msgs::StringConstPtr& msg)
 {
-  auto params = std::make_shared<PreprocessingParams>();
   std::string error;
-  if (!PreprocessingParams::parse(msg->data, params.get(), &error))
+  const std::shared_ptr<const PreprocessingParams> params = parseAnnouncedParameters(msg->data, &error);
+  if (!params)
   {
-    NODELET_ERROR("Ignoring invalid preprocessing parameters '%s': %s", msg->data.c_str(), error.c_str());
+    NODELET_ERROR("%s", error.c_str());
     return;
   }
   announced_params_ = params;

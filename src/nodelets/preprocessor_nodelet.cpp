@@ -102,8 +102,7 @@ void PreprocessorNodelet::onInit()
   std::set<std::string> read = configParameterNames<PreprocessorConfig>();
   read.insert(own.begin(), own.end());
   for (const std::string& name : unreadParameters(private_nh, read))
-    NODELET_WARN("~%s is not a parameter of the preprocessor and is ignored (misspelt?). It reads %s", name.c_str(),
-                 joined(read).c_str());
+    NODELET_WARN("%s", unreadSentence(name, "preprocessor", read).c_str());
   private_nh.param("queue_size", queue_size_, queue_size_);
   if (queue_size_ < 1)
   {
@@ -112,8 +111,8 @@ void PreprocessorNodelet::onInit()
   }
 
   last_valid_config_ = PreprocessorConfig::__getDefault__();
-  for (const std::string& sentence : outOfRangeParameters<PreprocessorConfig>(private_nh))
-    NODELET_ERROR("%s", sentence.c_str());
+  for (const std::string& sentence : mistypedParameters<PreprocessorConfig>(private_nh))
+    NODELET_WARN("%s", sentence.c_str());
   reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<PreprocessorConfig>>(config_mutex_, private_nh);
   reconfigure_server_->setCallback([this](PreprocessorConfig& config, uint32_t level) { configCb(config, level); });
 
@@ -156,31 +155,36 @@ void PreprocessorNodelet::connectCb()
 
 void PreprocessorNodelet::configCb(PreprocessorConfig& config, uint32_t /*level*/)
 {
-  // Corrections, so the panel shows the values in use.
+  // Corrections, so the panel shows the values in use: each value into its working range, then the
+  // combinations.
+  std::vector<std::string> corrections = correctToTable(config, last_valid_config_);
+  char sentence[256];
   if (config.filter_window % 2 == 0)
+  {
+    std::snprintf(sentence, sizeof(sentence), "filter_window %d is even; using %d", config.filter_window,
+                  config.filter_window + 1);
+    corrections.push_back(sentence);
     config.filter_window += 1;
+  }
   const int common = greatestCommonDivisor(config.output_width, config.output_height);
   if (config.normalization == "patch" && common % config.patch_size != 0)
   {
     int divisor = std::min(config.patch_size, common);
     while (common % divisor != 0)
       --divisor;
-    NODELET_WARN("patch_size %d does not divide the output size %dx%d; using %d", config.patch_size,
-                 config.output_width, config.output_height, divisor);
+    std::snprintf(sentence, sizeof(sentence), "patch_size %d does not divide the output size %dx%d; using %d",
+                  config.patch_size, config.output_width, config.output_height, divisor);
+    corrections.push_back(sentence);
     config.patch_size = divisor;
   }
   std::string invalid;
   const PreprocessingParams params = toParams(config, &invalid);
   if (invalid.empty())
     invalid = params.validate();
-  if (!invalid.empty())
-  {
-    NODELET_ERROR("Rejected preprocessing parameters: %s; keeping the previous ones", invalid.c_str());
-    config = last_valid_config_;
-    return;
-  }
-  last_valid_config_ = config;
-  requested_params_ = params;
+  const ConfigReview review = reviewConfig(config, last_valid_config_, std::move(corrections), invalid);
+  logConfigReview(review, getName(), "preprocessing parameters");
+  if (review.rejected.empty())
+    requested_params_ = params;
 }
 
 void PreprocessorNodelet::announce(const PreprocessingParams& params)

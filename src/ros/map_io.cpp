@@ -443,6 +443,16 @@ std::string preprocessingParamsTopic(const std::string& resolved_image_topic)
   return parent == "/" ? "/preprocessing_params" : parent + "/preprocessing_params";
 }
 
+std::shared_ptr<const PreprocessingParams> parseAnnouncedParameters(const std::string& text, std::string* error)
+{
+  auto params = std::make_shared<PreprocessingParams>();
+  std::string why;
+  if (PreprocessingParams::parse(text, params.get(), &why))
+    return params;
+  *error = "Ignoring invalid preprocessing parameters '" + text + "': " + why;
+  return nullptr;
+}
+
 namespace
 {
 

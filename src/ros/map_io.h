@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <ctime>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -40,6 +41,10 @@ constexpr int kMapFormat = 1;
 /// the image it receives. The map recorder stores the value in the map; the localizer refuses a map
 /// whose parameters differ.
 std::string preprocessingParamsTopic(const std::string& resolved_image_topic);
+
+/// The parameters a preprocessor announced on that topic (PreprocessingParams::serialize() text), or
+/// nullptr with *error the sentence to log: "Ignoring invalid preprocessing parameters '...': why".
+std::shared_ptr<const PreprocessingParams> parseAnnouncedParameters(const std::string& text, std::string* error);
 
 /// "output_width: 64 vs 32, sky_fraction: 0 vs 0.25" -- the fields whose serialized values differ.
 std::string preprocessingDifference(const PreprocessingParams& a, const PreprocessingParams& b);

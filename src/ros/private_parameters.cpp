@@ -1,5 +1,7 @@
 #include "ros/private_parameters.h"
 
+#include "along_route_localization/parameters.h"
+
 #include <algorithm>
 #include <sstream>
 
@@ -25,13 +27,28 @@ std::vector<std::string> unreadParameters(const ros::NodeHandle& private_nh, con
   return unread;
 }
 
-std::string outOfRangeSentence(const std::string& name, double value, double lo, double hi)
+std::string mistypedSentence(const std::string& name, const XmlRpc::XmlRpcValue& value, const std::string& type,
+                             const std::string& kept)
 {
-  std::ostringstream text;
-  text << "~" << name << " = " << value << " is outside " << lo << " .. " << hi;
-  if (value < lo || value > hi)
-    text << "; dynamic_reconfigure uses " << (value < lo ? lo : hi) << " instead";
-  return text.str();
+  const std::string wanted = type == "int" ? "an integer" : type == "double" ? "a number" :
+                             type == "str" ? "a string" : "true or false";
+  std::string given = const_cast<XmlRpc::XmlRpcValue&>(value).toXml();
+  if (value.getType() == XmlRpc::XmlRpcValue::TypeString)
+    given = "'" + static_cast<std::string>(const_cast<XmlRpc::XmlRpcValue&>(value)) + "'";
+  else if (value.getType() == XmlRpc::XmlRpcValue::TypeDouble)
+    given = std::to_string(static_cast<double>(const_cast<XmlRpc::XmlRpcValue&>(value)));
+  return "~" + name + " = " + given + " is not " + wanted + "; refused, keeping " + kept;
+}
+
+std::string unreadSentence(const std::string& name, const std::string& who, const std::set<std::string>& read)
+{
+  std::string sentence = "~" + name + " is not a parameter of the " + who + " and is ignored";
+  std::set<std::string> similar;
+  for (const std::string& other : similarParameterNames(name))
+    if (read.count(other))
+      similar.insert(other);
+  sentence += similar.empty() ? " (misspelt?)" : " (did you mean " + joined(similar) + "?)";
+  return sentence + ". It reads: " + joined(read);
 }
 
 std::string joined(const std::set<std::string>& names)

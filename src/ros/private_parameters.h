@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <boost/any.hpp>
+#include <XmlRpcValue.h>
 #include <ros/node_handle.h>
 
 namespace along_route_localization
@@ -26,33 +27,55 @@ std::set<std::string> configParameterNames()
   return names;
 }
 
-/// "~name = value is outside lo .. hi; dynamic_reconfigure uses lo instead".
-std::string outOfRangeSentence(const std::string& name, double value, double lo, double hi);
+/// "~name = value is not an integer: dynamic_reconfigure cannot read it and keeps default".
+std::string mistypedSentence(const std::string& name, const XmlRpc::XmlRpcValue& value, const std::string& type,
+                             const std::string& kept);
 
-/// For each numeric parameter of a dynamic_reconfigure config set under private_nh outside the .cfg's
-/// range, a sentence saying so: dynamic_reconfigure clamps such a value without a word. Call before
-/// creating the reconfigure server (which writes the clamped values back).
+/// For each parameter of a dynamic_reconfigure config set under private_nh with a value of another type
+/// (a string for a number, a fraction for an integer): dynamic_reconfigure keeps its default for such a
+/// value without a word. Call before creating the reconfigure server. (A value of the right type outside
+/// the working range reaches the config callback, which corrects it.)
 template <class Config>
-std::vector<std::string> outOfRangeParameters(const ros::NodeHandle& private_nh)
+std::vector<std::string> mistypedParameters(const ros::NodeHandle& private_nh)
 {
-  const Config min = Config::__getMin__(), max = Config::__getMax__();
+  const Config defaults = Config::__getDefault__();
   std::vector<std::string> sentences;
   for (const auto& description : Config::__getParamDescriptions__())
   {
-    const bool is_int = description->type == "int";
-    double value = 0.0;
-    if ((!is_int && description->type != "double") || !private_nh.getParam(description->name, value))
+    XmlRpc::XmlRpcValue value;
+    if (!private_nh.getParam(description->name, value))
       continue;
-    boost::any low, high;
-    description->getValue(min, low);
-    description->getValue(max, high);
-    const double lo = is_int ? boost::any_cast<int>(low) : boost::any_cast<double>(low);
-    const double hi = is_int ? boost::any_cast<int>(high) : boost::any_cast<double>(high);
-    if (!(value >= lo && value <= hi))
-      sentences.push_back(outOfRangeSentence(description->name, value, lo, hi));
+    const XmlRpc::XmlRpcValue::Type type = value.getType();
+    bool readable = false;
+    if (description->type == "int")
+      readable = type == XmlRpc::XmlRpcValue::TypeInt;
+    else if (description->type == "double")
+      readable = type == XmlRpc::XmlRpcValue::TypeInt || type == XmlRpc::XmlRpcValue::TypeDouble;
+    else if (description->type == "str")
+      readable = type == XmlRpc::XmlRpcValue::TypeString;
+    else if (description->type == "bool")
+      readable = type == XmlRpc::XmlRpcValue::TypeBoolean;
+    if (readable)
+      continue;
+    boost::any kept;
+    description->getValue(defaults, kept);
+    std::string kept_text;
+    if (description->type == "int")
+      kept_text = std::to_string(boost::any_cast<int>(kept));
+    else if (description->type == "double")
+      kept_text = std::to_string(boost::any_cast<double>(kept));
+    else if (description->type == "str")
+      kept_text = boost::any_cast<std::string>(kept);
+    else
+      kept_text = boost::any_cast<bool>(kept) ? "true" : "false";
+    sentences.push_back(mistypedSentence(description->name, value, description->type, kept_text));
   }
   return sentences;
 }
+
+/// "~ring_bufer_rows is not a parameter of the <who> and is ignored (did you mean ring_buffer_rows?).
+/// It reads: a, b, c".
+std::string unreadSentence(const std::string& name, const std::string& who, const std::set<std::string>& read);
 
 /// "a, b, c".
 std::string joined(const std::set<std::string>& names);

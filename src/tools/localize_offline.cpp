@@ -49,12 +49,22 @@ void usage(std::ostream& out)
          "  --save-map: also write the loaded map as a map file (the recorder's format: for the localizer\n"
          "        nodelet, or a later --map that skips decoding and preprocessing the images).\n"
          "  --params: YAML of 'name: value' lines, flat or in the launch files' sections (preprocessor:,\n"
-         "        localizer:; map_recorder: is skipped); --set overrides one parameter. Names:\n   ";
-  for (const std::string& name : alr::parameterNames())
-    out << " " << name;
-  out << "\n  --progress: on stderr, while loading and localizing: a line redrawn in place (bar), a line at every"
-         "\n        10 % (lines), nothing (off); auto (default): bar on a terminal, else lines after 2 s; off with --quiet.";
-  out << "\n  Output CSV columns: query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";
+         "        localizer:; map_recorder: is skipped). A value that does not parse or an unknown name is
+"
+         "        refused and a number outside its range is corrected, each with a warning; the others are
+"
+         "        used. --set overrides one parameter (any problem with it is an error).
+"
+         "  --progress: on stderr, while loading and localizing: a line redrawn in place (bar), a line at every
+"
+         "        10 % (lines), nothing (off); auto (default): bar on a terminal, else lines after 2 s; off with --quiet.
+"
+         "  Output CSV columns: query_index,keyframe,confidence,shift_px,homing_angle_rad,status
+"
+         "
+Parameters (name = default  (range unit), then what it is):
+"
+      << alr::parameterHelp({ alr::ParameterGroup::kPreprocessor, alr::ParameterGroup::kLocalizer });
 }
 
 // Progress of a stage on stderr (stdout may carry the results: --output /dev/stdout). kBar: a line redrawn
@@ -222,16 +232,26 @@ int main(int argc, char** argv)
   alr::LocalizerParams localizer_params;
   std::string error;
   std::vector<alr::ParameterEntry> file_entries;  // read once: applied again below over a map file's parameters
+  std::vector<std::string> refused;  // entries not taken as given: each named, the others used
   if (!params_path.empty() &&
       !(alr::readParameterFile(params_path, &file_entries, &error) &&
-        alr::applyParameterEntries(params_path, file_entries, &preprocessing, &localizer_params, &error)))
+        alr::applyParameterEntriesChecked(params_path, file_entries, &preprocessing, &localizer_params, &refused,
+                                          &error)))
   {
     std::cerr << "localize_offline: " << error << "\n";
     return 2;
   }
+  for (const std::string& sentence : refused)
+    std::cerr << "localize_offline: warning: " << sentence << "\n";
   for (const auto& kv : overrides)
   {
-    if (!alr::applyParameter(kv.first, kv.second, &preprocessing, &localizer_params, &error))
+    // One value typed by hand: any problem with it is an error, a number outside its range too.
+    alr::ParameterSet checked;
+    const bool parsed = alr::applyParameter(kv.first, kv.second, &preprocessing, &localizer_params, &error);
+    if (parsed && !alr::setParameterChecked(kv.first, kv.second, &checked).empty())
+      error = "parameter '" + kv.first + "' must be in " + alr::findParameter(kv.first)->rangeText() + ", got " +
+              kv.second;
+    if (!parsed || !error.empty())
     {
       std::cerr << "localize_offline: --set: " << error << "\n";
       return 2;
@@ -294,7 +314,8 @@ int main(int argc, char** argv)
     // preprocessing name among them, that leaves the map's parameters as they are).
     alr::PreprocessingParams given = preprocessing;
     alr::LocalizerParams unused;
-    alr::applyParameterEntries(params_path, file_entries, &given, &unused, &error);
+    std::vector<std::string> said;  // the same sentences as above
+    alr::applyParameterEntriesChecked(params_path, file_entries, &given, &unused, &said, &error);
     for (const auto& kv : overrides)
       alr::applyParameter(kv.first, kv.second, &given, &unused, &error);
     if (!(given == preprocessing))

@@ -521,7 +521,7 @@ void BM_GlobalRelocalization(benchmark::State& state)
   const int n = static_cast<int>(state.range(0));
   const auto map = routeMap(n);
   arl::LocalizerParams params = benchmarkLocalizerParams();
-  params.min_init_frames = INT_MAX;
+  params.init_confirm_frames = 10000;  // global answers, never confirmed
   params.coarse_search_keyframes = state.range(1) ? 1 : 0;
   arl::Localizer localizer(map, params);
   QueryStream stream(kStartKeyframe);

@@ -53,6 +53,7 @@ arl::DtwParams handParams(int exclusion_radius)
   params.stop_penalty = 0.3f;
   params.skip_penalty = 0.05f;
   params.sustained_skip_penalty = 0.05f;  // every skip pays the same: the plain two-state recursion
+  params.first_stop_penalty = 0.0f;       // a stop after a move is free
   params.missing_cost = 1.0f;
   params.exclusion_radius = exclusion_radius;
   params.column_centering = false;  // these tests check the plain recursion; centering has its own test

@@ -12,8 +12,8 @@
 //   byte 4  bit 0 census cost; bit 1 SeqSLAM; bit 2 subpixel; bit 3 energy-normalized cost; bit 4 parallel;
 //           bits 5-7 max_shift_px (kMaxShifts, some invalid for small images)
 //   byte 5  keyframes in the map = 1 + byte % 16
-//   byte 6  frames fed = 1 + byte % 8; ring_buffer_rows = 1 + (byte >> 3) % 8
-//   byte 7  min_init_frames = 1 + byte % 4; bit 2 stationary detection; bit 3 texture threshold
+//   byte 6  frames fed = 1 + byte % 8; ring_buffer_rows = 3 + (byte >> 3) % 8 (its least)
+//   byte 7  min_init_frames = 1 + byte % 3 (at most ring_buffer_rows); bit 2 stationary detection; bit 3 texture threshold
 // Every input must give a localization, a PreprocessingError or std::invalid_argument (invalid
 // parameters): anything else -- a crash, a sanitizer report, a cv::Exception -- is a bug.
 #include <algorithm>
@@ -105,8 +105,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
   params.max_shift_px = kMaxShifts[(header[4] >> 5) & 7];
   const int keyframes = 1 + header[5] % 16;
   const int frames = 1 + header[6] % 8;
-  params.ring_buffer_rows = 1 + (header[6] >> 3) % 8;
-  params.min_init_frames = 1 + header[7] % 4;
+  params.ring_buffer_rows = 3 + (header[6] >> 3) % 8;
+  params.min_init_frames = 1 + header[7] % 3;
   params.stationary_ratio = (header[7] & 4) ? 0.2f : 0.0f;
   params.min_texture_ratio = (header[7] & 8) ? 0.4f : 0.0f;
   params.search_radius = 3;

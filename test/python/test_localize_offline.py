@@ -373,7 +373,7 @@ class LocalizeOfflineTest(unittest.TestCase):
 
     def test_reads_the_launch_files_params_file(self):
         # The params_file given to teach.launch and repeat.launch: its localizer: section applies, its
-        # map_recorder: section is skipped, a misspelt name is still an error naming file and line.
+        # map_recorder: section is skipped, a misspelt name is refused with a warning naming file and line.
         params = os.path.join(self.tmp, 'shared_params.yaml')
         with open(params, 'w') as f:
             f.write('preprocessor:\n  normalization_strength: 0.1\nmap_recorder:\n  every_nth: 3\n'
@@ -389,8 +389,44 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertIn('tracking', [r['status'] for r in rows[29:]])
         with open(params, 'a') as f:
             f.write('  ring_bufer_rows: 10\n')
-        self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
-                                         '--params', params), 'ring_bufer_rows', 'shared_params.yaml:8')
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output, '--params', params)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn("shared_params.yaml:8: unknown parameter 'ring_bufer_rows' refused (did you mean "
+                      "ring_buffer_rows?)", result.stderr)
+
+    def test_one_bad_value_in_the_params_file_is_refused_by_name_and_the_good_ones_used(self):
+        # Issue 33: "method: DTW" rejected the whole file, and the defaults were used instead of the good
+        # values. min_init_frames: 30 shows that the good values are used (no answer before row 30), and
+        # sky_fraction: -0.5 is used as its nearest working value, 0.
+        params = os.path.join(self.tmp, 'one_bad.yaml')
+        with open(params, 'w') as f:
+            f.write('localizer:\n  start_keyframe: -1\n  method: DTW\n  min_init_frames: 30\n'
+                    'preprocessor:\n  sky_fraction: -0.5\n')
+        output = os.path.join(self.tmp, 'one_bad.csv')
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
+                                 '--params', params)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn("one_bad.yaml:3: method 'DTW' is not one of dtw | seqslam; keeping dtw", result.stderr)
+        self.assertIn('one_bad.yaml:6: sky_fraction -0.5 is outside 0 .. 0.95; using 0', result.stderr)
+        with open(output) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual([r['status'] for r in rows[:29]], ['initializing'] * 29)
+        self.assertIn('tracking', [r['status'] for r in rows[29:]])
+
+    def test_help_lists_every_parameter_with_default_range_and_meaning(self):
+        result = self.run_runner('--help')
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn('    ring_buffer_rows = 30  (3 .. 1000 frames)\n'
+                      '        K: frames in the sequence window', result.stdout)
+        self.assertIn('    normalization = divisive  (patch | divisive | none)\n', result.stdout)
+        self.assertIn('    skip_penalty = 0.85  (0 .. 10 cost)\n', result.stdout)
+        # Every name the parameter file takes is listed (once), with a default and a line of meaning.
+        listed = [line.split(' = ')[0].strip() for line in result.stdout.splitlines()
+                  if line.startswith('    ') and not line.startswith('        ') and ' = ' in line]
+        self.assertEqual(len(listed), len(set(listed)))
+        self.assertGreaterEqual(len(listed), 50)
+        for name in ('max_step', 'min_texture_ratio', 'output_width', 'seqslam_sequence_length', 'parallel'):
+            self.assertIn(name, listed)
 
     def test_preprocessing_given_for_a_map_file_must_agree_with_it(self):
         # A map file's keyframes were preprocessed with its stored parameters; a query preprocessed with
@@ -425,7 +461,7 @@ class LocalizeOfflineTest(unittest.TestCase):
                                  '--set', 'normalization_strength=0.2', '--set', 'patch_size=4')
         self.assertEqual(result.returncode, 0, result.stderr)
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
-                                         '--set', 'output_width=0'), 'invalid preprocessing parameters')
+                                         '--set', 'output_width=0'), "'output_width' must be in 8 .. 1024 px, got 0")
 
     def test_bad_options(self):
         common = ['--map', self.map_dir, '--query', self.map_dir, '--output', os.path.join(self.tmp, 'o.csv')]

@@ -13,6 +13,7 @@ import unittest
 import rospy
 import rostest
 from dynamic_reconfigure.client import Client as ReconfigureClient
+from rosgraph_msgs.msg import Log
 from sensor_msgs.msg import Image
 
 from along_route_localization.msg import Localization
@@ -70,8 +71,10 @@ class RepeatTest(unittest.TestCase):
                                                                'lost_after_frames': 12, 'lost_window_frames': 4})
         cls.reconfigure.update_configuration({'max_shift_px': 4, 'max_step': 2, 'search_radius': 40,
                                               'lost_after_frames': 6, 'lost_window_frames': 8})
-        # A misspelt method name is rejected with the previous values kept, not run as another method.
+        # A misspelt method name is refused by name, the previous method kept (not run as another one),
+        # and the good value beside it taken.
         cls.misspelt = cls.reconfigure.update_configuration({'method': 'seqslm', 'max_step': 3})
+        cls.reconfigure.update_configuration({'max_step': 2})
 
         # Second drive: the teach images again, with their own stamps, so time goes back as when a bag
         # loops (the localizer restarts); frames 40..79 shifted right by 2 px (camera yawed left). Half
@@ -98,6 +101,16 @@ class RepeatTest(unittest.TestCase):
         fx.wait_for(lambda: cls.localizations.count() >= len(cls.dropout_frames), 30,
                     'a Localization per frame of the third drive')
         cls.third_drive = cls.localizations.take()
+
+        # Fourth drive: `dynparam set /repeat/localizer ring_buffer_rows -3`, then the generator's repeat
+        # drive again (time goes back: the localizer restarts). dynamic_reconfigure clamped -3 to 1 without
+        # a word, and every answer after it was lost; now it is corrected to the least working window,
+        # min_init_frames = 5 rows, with a warning.
+        cls.minus_three = cls.reconfigure.update_configuration({'ring_buffer_rows': -3})
+        fx.play(os.path.join(cls.tmp, 'repeat.bag'), {fx.CAMERA_TOPIC: '/repeat_camera/image_raw'})
+        fx.wait_for(lambda: cls.localizations.count() >= len(cls.repeat), 30, 'a Localization per frame of the fourth drive')
+        cls.fourth_drive = cls.localizations.take()
+        cls.reconfigure.update_configuration({'ring_buffer_rows': 30})
 
     @classmethod
     def tearDownClass(cls):
@@ -150,17 +163,34 @@ class RepeatTest(unittest.TestCase):
         self.assertEqual(self.corrected['search_radius'], 3)   # at least max_step
         self.assertEqual(self.corrected['lost_window_frames'], 12)  # at least lost_after_frames
 
-    def test_a_misspelt_method_is_rejected_and_named(self):
+    def test_a_misspelt_method_is_refused_by_name_and_the_good_values_taken(self):
         self.assertEqual(self.misspelt['method'], 'dtw')
-        self.assertEqual(self.misspelt['max_step'], 2)  # the whole change is rejected, as for any bad value
-        fx.wait_for(lambda: self.rosout.matching("method must be 'dtw' or 'seqslam', got 'seqslm'"), 10,
-                    'the rejection in the log')
-        self.assertTrue(self.rosout.matching('keeping the previous ones'))
+        self.assertEqual(self.misspelt['max_step'], 3)  # before, the whole change was rejected
+        fx.wait_for(lambda: self.rosout.matching("method 'seqslm' is not one of dtw | seqslam; keeping dtw",
+                                                 Log.WARN), 10, 'the refusal in the log')
+        self.assertTrue(self.rosout.matching('max_step 2 -> 3', Log.INFO))
 
     def test_out_of_range_corrections_are_logged(self):
         fx.wait_for(lambda: self.rosout.matching('search_radius 1 is below max_step 3; using 3'), 10,
                     'the search_radius correction in the log')
         self.assertTrue(self.rosout.matching('lost_window_frames 4 is below lost_after_frames 12; using 12'))
+
+    def test_ring_buffer_rows_minus_3_is_corrected_with_a_warning_and_the_localizer_goes_on(self):
+        self.assertEqual(self.minus_three['ring_buffer_rows'], 5)
+        # Each correction said at WARN, the change once at INFO, with the value used.
+        fx.wait_for(lambda: self.rosout.matching('ring_buffer_rows 30 -> 5', Log.INFO), 10, 'the change in the log')
+        self.assertTrue(self.rosout.matching('ring_buffer_rows -3 is outside 3 .. 1000 frames; using 3', Log.WARN))
+        self.assertTrue(self.rosout.matching('ring_buffer_rows 3 is below min_init_frames 5', Log.WARN))
+        self.assertEqual(len(self.rosout.matching('ring_buffer_rows 30 -> 5')), 1)
+        # One answer per frame, and not lost for the rest of the drive (with K = 1 every answer after the
+        # first ones was lost). Five rows are a poor window for this drive's stops: localize_offline with
+        # K = 5 on the same bags tracks 62 of its 136 frames and ends on the last keyframe (K = 30: 136).
+        self.assertEqual([m.header.stamp for m in self.fourth_drive], [m.header.stamp for m in self.repeat])
+        statuses = [m.status for m in self.fourth_drive]
+        self.assertGreaterEqual(sum(1 for status in statuses[5:] if status in TRACKING), 30, statuses)
+        last, truth = self.fourth_drive[-1], int(self.truth[-1]['teach_frame'])
+        self.assertIn(last.status, TRACKING, statuses)
+        self.assertLessEqual(abs(last.keyframe - truth), 2, (last.keyframe, truth))
 
     def test_ring_buffer_rows_change_mid_stream(self):
         self.assertEqual(self.reconfigured['ring_buffer_rows'], 10)

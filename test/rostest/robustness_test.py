@@ -329,15 +329,17 @@ class RobustnessTest(unittest.TestCase):
             rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
 
     def test_static_parameters_are_checked_one_by_one(self):
-        # A second localizer in the running manager, given one valid static parameter, one invalid, one
-        # dynamic one outside its .cfg range, one misspelt and one that is the preprocessor's: the valid
-        # one applies (before, one bad value reset them all to the defaults), and each of the others is
-        # named (before, all but the invalid one were ignored or clamped without a word).
+        # A second localizer in the running manager, given valid static parameters, one outside its range,
+        # one that does not parse, a dynamic one outside its range, one misspelt and one that is the
+        # preprocessor's: the valid ones apply (before, one bad value reset them all to the defaults), and
+        # each of the others is named with the value used (before, all but one were ignored or clamped
+        # without a word).
         name = '/repeat/checked_localizer'
         checked = self.load_localizer(name, {
             'start_keyframe': -1,  # the start unknown: a global search, and
             'min_init_frames': 25,  # (default 5) tracking from about frame 10
             'exclusion_radius': -1,
+            'cost_function': 'SAD',
             # Valid only together (the default minimum is 0.8): both must be taken.
             'seqslam_min_velocity': 0.1, 'seqslam_max_velocity': 0.5,
             'max_step': 0,
@@ -345,10 +347,17 @@ class RobustnessTest(unittest.TestCase):
             'normalization_strength': 0.2,
         }, '/repeat/checked_localization')
         try:
-            for text in ('Ignoring ~exclusion_radius = -1', '~max_step = 0 is outside 1 .. ', '~ring_bufer_rows is not a parameter of the localizer',
+            for text in ('~exclusion_radius -1 is outside 1 .. 1000000 keyframes; using 1',
+                         "~cost_function 'SAD' is not one of sad | census; keeping sad",
+                         'max_step 0 is outside 1 .. 16 keyframes per frame; using 1',
+                         '~ring_bufer_rows is not a parameter of the localizer and is ignored (did you mean '
+                         'ring_buffer_rows?). It reads: ',
                          "~normalization_strength is not read here: it is the preprocessor's"):
                 fx.wait_for(lambda: self.rosout.matching(text), 10, 'a message starting %r' % text)
             self.assertEqual(self.rosout.matching('Ignoring ~seqslam'), [])
+            # What is used is said once: the corrected value, the values taken.
+            self.assertTrue(self.rosout.matching('exclusion_radius 5 -> 1'))
+            self.assertTrue(self.rosout.matching('min_init_frames 5 -> 25'))
             statuses = self.drive_teach_frames(checked, 'localizations from the checked localizer')
             self.assertGreaterEqual(len(statuses), 30)
             first_tracking = statuses.index(Localization.STATUS_TRACKING)

@@ -1,6 +1,12 @@
-// The dynamic_reconfigure defaults (cfg/*.cfg) are the core defaults, so a nodelet started without
-// parameters behaves as localize_offline does with none.
+// The dynamic_reconfigure .cfg files agree with the core's parameter table (defaults, descriptions with
+// the working range, no .cfg range), so a nodelet started without parameters behaves as localize_offline
+// does with none; and what a config callback makes of a new config (corrections, changes).
+#include <climits>
 #include <cmath>
+#include <limits>
+#include <set>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -67,6 +73,26 @@ TEST(Reconfigure, RouteFollowerCfgDefaultsAreTheCoreDefaults)
   EXPECT_DOUBLE_EQ(2.5, changed.watchdog_timeout_s);
 }
 
+TEST(Reconfigure, MapRecorderCfgDefaultsAreTheCoreDefaultsAndEachFieldComesFromTheCfg)
+{
+  const arl::KeyframePolicy core;
+  arl::KeyframePolicy cfg = arl::toPolicy(arl::MapRecorderConfig::__getDefault__());
+  EXPECT_EQ(core.every_nth, cfg.every_nth);
+  EXPECT_DOUBLE_EQ(core.min_time_gap_s, cfg.min_time_gap_s);
+  EXPECT_DOUBLE_EQ(core.min_appearance_change, cfg.min_appearance_change);
+  EXPECT_DOUBLE_EQ(core.min_distance_m, cfg.min_distance_m);
+  arl::MapRecorderConfig config = arl::MapRecorderConfig::__getDefault__();
+  config.every_nth = 3;
+  config.min_time_gap = 0.5;
+  config.min_appearance_change = 7.0;
+  config.min_distance = 2.5;
+  cfg = arl::toPolicy(config);
+  EXPECT_EQ(3, cfg.every_nth);
+  EXPECT_DOUBLE_EQ(0.5, cfg.min_time_gap_s);
+  EXPECT_DOUBLE_EQ(7.0, cfg.min_appearance_change);
+  EXPECT_DOUBLE_EQ(2.5, cfg.min_distance_m);
+}
+
 TEST(Reconfigure, LocalizerFieldsTheCfgDoesNotHaveComeFromTheBase)
 {
   arl::LocalizerParams base;
@@ -94,7 +120,7 @@ TEST(Reconfigure, AnUnknownEnumNameIsNamedSoTheNodeletCanRejectIt)
   EXPECT_EQ("", problem);
   localizer.method = "seqslm";
   arl::toParams(localizer, arl::LocalizerParams(), &problem);
-  EXPECT_EQ("method must be 'dtw' or 'seqslam', got 'seqslm'", problem);
+  EXPECT_EQ("method 'seqslm' is not one of dtw | seqslam", problem);
 
   arl::PreprocessorConfig preprocessor = arl::PreprocessorConfig::__getDefault__();
   problem.clear();
@@ -102,5 +128,130 @@ TEST(Reconfigure, AnUnknownEnumNameIsNamedSoTheNodeletCanRejectIt)
   EXPECT_EQ("", problem);
   preprocessor.normalization = "divisve";
   arl::toParams(preprocessor, &problem);
-  EXPECT_EQ("normalization must be 'divisive', 'patch' or 'none', got 'divisve'", problem);
+  EXPECT_EQ("normalization 'divisve' is not one of patch | divisive | none", problem);
+}
+
+namespace
+{
+
+/// Every parameter of Config (a .cfg) against the table: a row of `group`, the description "doc [range]",
+/// the table's default, no range of its own (dynamic_reconfigure would clamp without a word), and for a
+/// choice the same names. Each row of `group` is in the .cfg when `all_rows`.
+template <class Config>
+void expectCfgAgreesWithTheTable(arl::ParameterGroup group, bool all_rows)
+{
+  const dynamic_reconfigure::ConfigDescription description = Config::__getDescriptionMessage__();
+  std::set<std::string> in_cfg;
+  for (const auto& cfg_group : description.groups)
+  {
+    for (const dynamic_reconfigure::ParamDescription& param : cfg_group.parameters)
+    {
+      SCOPED_TRACE(param.name);
+      in_cfg.insert(param.name);
+      const arl::ParameterSpec* spec = arl::findParameter(param.name);
+      ASSERT_NE(nullptr, spec) << "not in the parameter table";
+      EXPECT_EQ(arl::toString(group), arl::toString(spec->group));
+      EXPECT_EQ(spec->doc + " [" + spec->rangeText() + "]", param.description);
+      const arl::ParameterSet defaults;
+      if (spec->type == arl::ParameterType::kChoice)
+      {
+        ASSERT_EQ("str", param.type);
+        EXPECT_EQ(spec->defaultText(), arl::findByName(description.dflt.strs, param.name)->value);
+        size_t listed = 0;
+        for (size_t at = param.edit_method.find("'value'"); at != std::string::npos;
+             at = param.edit_method.find("'value'", at + 1))
+          ++listed;
+        EXPECT_EQ(spec->choices.size(), listed) << param.edit_method;
+        for (const std::string& choice : spec->choices)
+          EXPECT_NE(std::string::npos, param.edit_method.find("'value': '" + choice + "'")) << param.edit_method;
+      }
+      else if (spec->type == arl::ParameterType::kInt)
+      {
+        ASSERT_EQ("int", param.type);
+        EXPECT_EQ(spec->get_number(defaults), arl::findByName(description.dflt.ints, param.name)->value);
+        EXPECT_EQ(INT_MIN, arl::findByName(description.min.ints, param.name)->value) << "a .cfg range: clamped silently";
+        EXPECT_EQ(INT_MAX, arl::findByName(description.max.ints, param.name)->value) << "a .cfg range: clamped silently";
+      }
+      else if (spec->type == arl::ParameterType::kDouble)
+      {
+        ASSERT_EQ("double", param.type);
+        const double table = spec->get_number(defaults);
+        EXPECT_NEAR(table, arl::findByName(description.dflt.doubles, param.name)->value, 1e-6 * std::max(1.0, std::abs(table)));
+        EXPECT_EQ(-std::numeric_limits<double>::infinity(), arl::findByName(description.min.doubles, param.name)->value);
+        EXPECT_EQ(std::numeric_limits<double>::infinity(), arl::findByName(description.max.doubles, param.name)->value);
+      }
+      else
+      {
+        ASSERT_EQ("bool", param.type);
+      }
+    }
+  }
+  if (!all_rows)
+    return;
+  for (const arl::ParameterSpec& spec : arl::parameterTable())
+  {
+    if (spec.group == group)
+    {
+      EXPECT_TRUE(in_cfg.count(spec.name)) << spec.name << " is missing from the .cfg";
+    }
+  }
+}
+
+}  // namespace
+
+TEST(Reconfigure, TheCfgFilesAgreeWithTheParameterTable)
+{
+  expectCfgAgreesWithTheTable<arl::PreprocessorConfig>(arl::ParameterGroup::kPreprocessor, true);
+  expectCfgAgreesWithTheTable<arl::LocalizerConfig>(arl::ParameterGroup::kLocalizer, false);
+  expectCfgAgreesWithTheTable<arl::MapRecorderConfig>(arl::ParameterGroup::kMapRecorder, true);
+}
+
+TEST(Reconfigure, ValuesOutsideTheWorkingRangeAreCorrectedAndBadChoicesKeepThePreviousValue)
+{
+  arl::LocalizerConfig previous = arl::LocalizerConfig::__getDefault__();
+  arl::LocalizerConfig config = previous;
+  config.ring_buffer_rows = -3;  // dynparam set /localizer ring_buffer_rows -3
+  config.method = "DTW";
+  config.max_step = 3;
+  config.confidence_threshold = 1.5;
+  const std::vector<std::string> corrections = arl::correctToTable(config, previous);
+  ASSERT_EQ(3u, corrections.size());
+  EXPECT_EQ("ring_buffer_rows -3 is outside 3 .. 1000 frames; using 3", corrections[0]);
+  EXPECT_EQ("confidence_threshold 1.5 is outside 0 .. 1; using 1", corrections[1]);
+  EXPECT_EQ("method 'DTW' is not one of dtw | seqslam; keeping dtw", corrections[2]);
+  EXPECT_EQ(3, config.ring_buffer_rows);
+  EXPECT_EQ("dtw", config.method);
+  EXPECT_EQ(3, config.max_step);  // the good value is kept
+  EXPECT_DOUBLE_EQ(1.0, config.confidence_threshold);
+
+  arl::MapRecorderConfig recorder = arl::MapRecorderConfig::__getDefault__();
+  recorder.every_nth = 0;
+  recorder.min_distance = -1.0;
+  const std::vector<std::string> recorder_corrections =
+      arl::correctToTable(recorder, arl::MapRecorderConfig::__getDefault__());
+  ASSERT_EQ(2u, recorder_corrections.size());
+  EXPECT_EQ("every_nth 0 is outside 1 .. 1000 frames; using 1", recorder_corrections[0]);
+  EXPECT_EQ("min_distance -1 is outside 0 .. 10000 m; using 0", recorder_corrections[1]);
+}
+
+TEST(Reconfigure, AReviewListsEachChangeOnceOrRestoresTheLastValidConfig)
+{
+  arl::LocalizerConfig last_valid = arl::LocalizerConfig::__getDefault__();
+  arl::LocalizerConfig config = last_valid;
+  config.ring_buffer_rows = 10;
+  config.skip_penalty = 0.5;
+  arl::ConfigReview review = arl::reviewConfig(config, last_valid, { "a correction" }, "");
+  EXPECT_EQ(std::vector<std::string>{ "a correction" }, review.corrections);
+  EXPECT_EQ((std::vector<std::string>{ "ring_buffer_rows 30 -> 10", "skip_penalty 0.85 -> 0.5" }), review.changes);
+  EXPECT_EQ("", review.rejected);
+  EXPECT_EQ(10, last_valid.ring_buffer_rows);
+  // The same config again: nothing changed, nothing said.
+  review = arl::reviewConfig(config, last_valid, {}, "");
+  EXPECT_TRUE(review.changes.empty());
+  // A combination validate() refuses: the last valid config comes back, and no change is claimed.
+  config.ring_buffer_rows = 20;
+  review = arl::reviewConfig(config, last_valid, {}, "some reason");
+  EXPECT_EQ("some reason", review.rejected);
+  EXPECT_TRUE(review.changes.empty());
+  EXPECT_EQ(10, config.ring_buffer_rows);
 }
