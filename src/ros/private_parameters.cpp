@@ -59,4 +59,13 @@ std::string joined(const std::set<std::string>& names)
   return text;
 }
 
+std::string outOfRangeSentence(const std::string& name, double value, double lo, double hi)
+{
+  std::ostringstream text;
+  text << "~" << name << " = " << value << " is outside " << lo << " .. " << hi;
+  if (value < lo || value > hi)
+    text << "; dynamic_reconfigure uses " << (value < lo ? lo : hi) << " instead";
+  return text.str();
+}
+
 }  // namespace along_route_localization
