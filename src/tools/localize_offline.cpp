@@ -23,8 +23,8 @@
 #include "along_route_localization/parameters.h"
 #include "along_route_localization/preprocessing.h"
 #include "along_route_localization/route_map.h"
-#include "ros/frame_source.h"
-#include "ros/map_io.h"
+#include "glue/frame_source.h"
+#include "glue/map_io.h"
 
 namespace alr = along_route_localization;
 

@@ -1,4 +1,4 @@
-#include "ros/private_parameters.h"
+#include "glue/private_parameters.h"
 
 #include "along_route_localization/parameters.h"
 
