@@ -1,6 +1,6 @@
 // A nodelet's private parameters: which of those set on the parameter server it does not read.
-#ifndef ALONG_ROUTE_LOCALIZATION_ROS_PRIVATE_PARAMETERS_H
-#define ALONG_ROUTE_LOCALIZATION_ROS_PRIVATE_PARAMETERS_H
+#ifndef ALONG_ROUTE_LOCALIZATION_GLUE_PRIVATE_PARAMETERS_H
+#define ALONG_ROUTE_LOCALIZATION_GLUE_PRIVATE_PARAMETERS_H
 
 #include <set>
 #include <string>
@@ -111,4 +111,4 @@ std::string joined(const std::set<std::string>& names);
 
 }  // namespace along_route_localization
 
-#endif  // ALONG_ROUTE_LOCALIZATION_ROS_PRIVATE_PARAMETERS_H
+#endif  // ALONG_ROUTE_LOCALIZATION_GLUE_PRIVATE_PARAMETERS_H
