@@ -223,7 +223,7 @@ CORE := $(patsubst $(PKG)/src/core/%.cpp,obj/%.o,$(wildcard $(PKG)/src/core/*.cp
 all: fuzz_map_loader fuzz_image_input fuzz_seeds
 obj/%.o: $(PKG)/src/core/%.cpp
 	clang++ $(CXXFLAGS) -c $< -o $@
-obj/map_io.o: $(PKG)/src/ros/map_io.cpp
+obj/map_io.o: $(PKG)/src/glue/map_io.cpp
 	clang++ $(CXXFLAGS) -c $< -o $@
 obj/%.o: $(PKG)/test/fuzz/%.cpp
 	clang++ $(CXXFLAGS) -c $< -o $@

@@ -46,7 +46,6 @@ float enhanceContrastRuns(const float* costs, const uint8_t* informative, const 
 /// keyframe than one whose best match barely does (a query halfway between two keyframes of a sparse map,
 /// a look-alike stretch), so its row counts more in the DTW:
 ///   w = clamp(peak / reference, 1 - range, 1 + range);   range 0: every row weighs 1 (the paper).
-/// (doc/evaluation_history.md has how often such rows are right on Nordland.)
 float rowWeight(float peak, float reference, float range);
 
 }  // namespace along_route_localization

@@ -17,8 +17,7 @@ enum class SubpixelFit
   kEquiangular  ///< crossing of two lines of opposite slopes through them (exact for SAD on a linear ramp)
 };
 
-/// How the homing estimate is measured. README, Homing: chosen by leave-one-place-out cross-validation
-/// on the GRIEF Stromovka pairs.
+/// How the homing estimate is measured (homingShift, homing.cpp). README, Homing.
 struct HomingParams
 {
   /// Shifts searched, [-max_shift_px, max_shift_px], px of the preprocessed image. Wider than the
@@ -30,7 +29,7 @@ struct HomingParams
   int max_vertical_shift_px = 2;
   /// At each shift, only this share of the overlapping columns, those that match best, count: a column
   /// whose content changed (a parked car, foliage, snow) matches badly at every shift and is left out.
-  /// 1 = every overlapping column: on the Stromovka pairs lower shares measured worse (README, Homing).
+  /// 1 = every overlapping column. Share in (0, 1].
   double kept_column_share = 1.0;
   SubpixelFit subpixel_fit = SubpixelFit::kEquiangular;
 

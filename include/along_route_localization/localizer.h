@@ -51,10 +51,8 @@ struct LocalizerParams
   float contrast_clamp = 2.0f;        ///< |enhanced cost| limit
   /// Step 3a, rowWeight (an extension of the paper): while tracking, each row is weighed by
   /// clamp(peak / row_weight_reference, 1 - row_weight_range, 1 + row_weight_range), the peak being how
-  /// many standard deviations (eq. 2) its best keyframe stands out. On Nordland the tracking rows' peaks have a median of 2.6 (10th-90th
-  /// percentile 2.0-3.5); on 2:1 spacing 2.3 for queries halfway between two keyframes, 2.7 for the
-  /// others. Range 0: every row weighs 1. Chosen on frames 0-893 among references 2 / 2.25 / 2.5 and
-  /// ranges 0.1 / 0.2 / 0.3 / 0.4 (doc/evaluation_history.md).
+  /// many standard deviations (eq. 2) its best keyframe stands out. Reference: a peak, in standard
+  /// deviations; range: dimensionless. Range 0: every row weighs 1.
   float row_weight_reference = 2.25f;
   float row_weight_range = 0.2f;
   /// A frame or keyframe whose textureEnergy is below min_texture_ratio * the map's median keyframe
@@ -78,23 +76,19 @@ struct LocalizerParams
   /// On maps of at least this many keyframes (0: never) a global search compares 2x2-averaged images
   /// (halveImage) with a shift range of ceil(m / 2): a quarter of the bytes and about half the shifts. The
   /// answer's reported shift is still measured at full resolution; tracking always is, but for the rows of
-  /// a known start's check (start_keyframe), which serve its global search too. On the 1788-frame
-  /// Nordland route the coarse rows gave the same accuracy (README, Performance).
+  /// a known start's check (start_keyframe), which serve its global search too.
   int coarse_search_keyframes = 4096;
   /// While tracking, the new match continues from the last one (L): it is chosen among the ends
   /// [L - dtw.exclusion_radius, L + dtw.max_step + max_jump_ahead] of the band. Further back or further
   /// ahead is another place, left to the loss detection and the global search (a cheaper path there
   /// still lowers the confidence). The slack ahead is wider than behind: answers lag the robot more
-  /// often than they lead it (after stations and tunnels crossed at the speed of arrival). On Nordland
-  /// 10-20 gave the same results, 5 was too tight (doc/evaluation_history.md).
+  /// often than they lead it (after stations and tunnels crossed at the speed of arrival). Keyframes.
   int max_jump_ahead = 15;
   /// Motion prior on the new match while tracking (EndPrior): each candidate end pays this much cost per
   /// row per keyframe away from where the robot is predicted to be, up to motion_prior_cap keyframes
   /// (motionPrior has the prediction). The DTW's cheapest end wobbles where the views look alike (2:1
   /// map spacing, stations): one keyframe off the prediction costs 0.02 per row, 0.6 over K = 30 rows,
-  /// against 0.85 for one skip. 0 = off. Chosen on Nordland frames 0-893 among 0.01 / 0.015 / 0.02 with
-  /// caps 2 / 3 / 5 (sum of the four scenarios' within-one shares 3.576 to 3.591, without the prior
-  /// 3.513); checked on frames 894-1787: 3.815 -> 3.889 (doc/evaluation_history.md).
+  /// against 0.85 for one skip. Cost units per row per keyframe; 0 = off.
   float motion_prior_weight = 0.02f;
   /// Keyframes beyond which the motion prior's penalty stays flat, so stronger evidence can still move
   /// the match further (a station crossed at another speed than taught leaves the answer behind). Not
@@ -105,9 +99,8 @@ struct LocalizerParams
   /// first), from the cruise_speed_frames-th on an exponential moving average over that many. The DTW's
   /// tie-break between speeds follows it (cruiseSpeedTieBreak): a robot that drives at half the speed it
   /// taught, or a map taught with twice the frame spacing, is followed at half speed through views that
-  /// cannot tell speeds apart, instead of at one keyframe per frame. 0 = off (the nominal speed always).
-  /// Chosen on Nordland frames 0-893 among 70 / 100 / 150; 50 and 200 were worse on the whole line
-  /// (doc/evaluation_history.md).
+  /// cannot tell speeds apart, instead of at one keyframe per frame. Frames; 0 = off (the nominal speed
+  /// always).
   int cruise_speed_frames = 100;
   DtwParams dtw;                      ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
@@ -115,7 +108,7 @@ struct LocalizerParams
   /// again with the whole map, instead of an empty window: they are frames the robot has seen, and the
   /// loss was judged on them (lost_window_frames). The rows of the lost track are dropped: they covered
   /// only its band. 0 = start from an empty window. At most K - 1 are used. That first frame computes
-  /// their whole-map rows too: 6.5x-7.8x the time of a global frame (README, Performance).
+  /// their whole-map rows too, so it costs several global frames (README, Performance).
   int relocalization_rows = 8;
   /// Where the robot starts, on the first frame after construction or reset() (a new map, time going
   /// back in a looping bag). >= 0: at this keyframe (teach and repeat: the repeat starts where the teach
@@ -138,15 +131,13 @@ struct LocalizerParams
   /// true one, sigma(calibration_offset + calibration_slope * c), c being the margin confidence above
   /// (calibratedConfidence; a logistic fit, Platt scaling). scripts/cross_validate fits both on real
   /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
-  /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. The defaults are
-  /// the fit on all six folds of the shared Nordland line (doc/evaluation_history.md).
+  /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. Both dimensionless.
   float calibration_offset = 0.49f;
   float calibration_slope = 8.144f;
   /// Lost (global search again) when lost_after_frames of the last lost_window_frames informative
   /// frames were low-confidence (LossDetector). Featureless frames do not count, nor do copies of the
   /// last view (the camera standing still): they bring no evidence of another place, and a long stop at
-  /// a station that looks like others made the track lost (Localizer.StandingStillDoesNotMakeTheTrackLost;
-  /// Nordland stop-and-go, seed 2: within one frame 0.845 -> 0.863).
+  /// a station that looks like others made the track lost (Localizer.StandingStillDoesNotMakeTheTrackLost).
   int lost_after_frames = 6;
   int lost_window_frames = 8;
   /// Weak evidence is not contrary evidence: when the loss detection fires, the last relocalization_rows
@@ -238,9 +229,8 @@ double calibratedConfidence(double c, float offset, float slope);
 /// speed lately, the speed over the last kRecentSpeedRows steps. "Changed" means that speed and the one
 /// over the steps before them (at least kRecentSpeedRows too) differ by at least kSpeedChange keyframes
 /// per frame. A robot stopping, halving or doubling its speed changes it by 0.5 or more; measured over 8
-/// rows, one stop or skip more or less moves a speed by 0.125, so 0.4 leaves room for that (0.3 already
-/// took the wobble of a path at constant speed for a change: Nordland aligned, frames 0-893, within one
-/// frame 0.938 -> 0.927). 1 (the nominal speed) for fewer than three rows.
+/// rows, one stop or skip more or less moves a speed by 0.125, so 0.4 leaves room for that. 1 (the
+/// nominal speed) for fewer than three rows.
 double pathSpeed(const std::vector<int>& path);
 constexpr int kRecentSpeedRows = 8;
 constexpr double kSpeedChange = 0.4;

@@ -56,7 +56,7 @@ struct DtwParams
   /// for a robot that drives slower than it taught.
   float move_penalty = 0.0f;
   /// Added per keyframe skipped beyond one, for (1,k), k >= 2, speeding up. Below 1, so that a stretch at
-  /// twice the teach speed stays cheaper than losing the track (doc/evaluation_history.md).
+  /// twice the teach speed stays cheaper than losing the track. Cost units.
   float skip_penalty = 0.85f;
   /// As skip_penalty, for a (1,k), k >= 2, that follows another such step: a robot that keeps driving
   /// faster than it taught pays on speeding up only when this is 0. Equal to skip_penalty, every skip

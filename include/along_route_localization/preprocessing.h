@@ -52,8 +52,8 @@ struct PreprocessingParams
 {
   int output_width = 64;    ///< px
   int output_height = 32;   ///< px
-  /// eq. 3 by default: on real summer -> winter frames it matches better than eq. 1 and measures the
-  /// shift better (README, Results: "Why eq. 3 by default").
+  /// Which normalization: eq. 1 (patch) or eq. 3 (divisive, the default; doc/evaluation_history.md says
+  /// why).
   NormalizationMethod normalization = NormalizationMethod::kDivisive;
 
   // eq. 1 (patch normalization)

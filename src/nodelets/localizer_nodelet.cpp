@@ -39,10 +39,10 @@
 #include "along_route_localization/debug_image.h"
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/parameters.h"
-#include "ros/diagnostics.h"
-#include "ros/map_io.h"
-#include "ros/private_parameters.h"
-#include "ros/reconfigure.h"
+#include "glue/diagnostics.h"
+#include "glue/map_io.h"
+#include "glue/private_parameters.h"
+#include "glue/reconfigure.h"
 
 namespace along_route_localization
 {

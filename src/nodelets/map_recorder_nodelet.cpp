@@ -49,10 +49,10 @@
 
 #include "along_route_localization/MapRecorderConfig.h"
 #include "along_route_localization/preprocessing.h"
-#include "ros/diagnostics.h"
-#include "ros/map_io.h"
-#include "ros/private_parameters.h"
-#include "ros/reconfigure.h"
+#include "glue/diagnostics.h"
+#include "glue/map_io.h"
+#include "glue/private_parameters.h"
+#include "glue/reconfigure.h"
 
 namespace along_route_localization
 {

@@ -26,11 +26,11 @@
 
 #include "along_route_localization/PreprocessorConfig.h"
 #include "along_route_localization/preprocessing.h"
-#include "ros/diagnostics.h"
-#include "ros/image_message.h"
-#include "ros/map_io.h"
-#include "ros/private_parameters.h"
-#include "ros/reconfigure.h"
+#include "glue/diagnostics.h"
+#include "glue/image_message.h"
+#include "glue/map_io.h"
+#include "glue/private_parameters.h"
+#include "glue/reconfigure.h"
 
 namespace along_route_localization
 {

@@ -29,10 +29,10 @@
 #include "along_route_localization/Localization.h"
 #include "along_route_localization/RouteFollowerConfig.h"
 #include "along_route_localization/route_follower.h"
-#include "ros/diagnostics.h"
-#include "ros/map_io.h"
-#include "ros/private_parameters.h"
-#include "ros/reconfigure.h"
+#include "glue/diagnostics.h"
+#include "glue/map_io.h"
+#include "glue/private_parameters.h"
+#include "glue/reconfigure.h"
 
 namespace along_route_localization
 {

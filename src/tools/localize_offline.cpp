@@ -23,8 +23,8 @@
 #include "along_route_localization/parameters.h"
 #include "along_route_localization/preprocessing.h"
 #include "along_route_localization/route_map.h"
-#include "ros/frame_source.h"
-#include "ros/map_io.h"
+#include "glue/frame_source.h"
+#include "glue/map_io.h"
 
 namespace alr = along_route_localization;
 
@@ -49,21 +49,13 @@ void usage(std::ostream& out)
          "  --save-map: also write the loaded map as a map file (the recorder's format: for the localizer\n"
          "        nodelet, or a later --map that skips decoding and preprocessing the images).\n"
          "  --params: YAML of 'name: value' lines, flat or in the launch files' sections (preprocessor:,\n"
-         "        localizer:; map_recorder: is skipped). A value that does not parse or an unknown name is
-"
-         "        refused and a number outside its range is corrected, each with a warning; the others are
-"
-         "        used. --set overrides one parameter (any problem with it is an error).
-"
-         "  --progress: on stderr, while loading and localizing: a line redrawn in place (bar), a line at every
-"
-         "        10 % (lines), nothing (off); auto (default): bar on a terminal, else lines after 2 s; off with --quiet.
-"
-         "  Output CSV columns: query_index,keyframe,confidence,shift_px,homing_angle_rad,status
-"
-         "
-Parameters (name = default  (range unit), then what it is):
-"
+         "        localizer:; map_recorder: is skipped). A value that does not parse or an unknown name is\n"
+         "        refused and a number outside its range is corrected, each with a warning; the others are\n"
+         "        used. --set overrides one parameter (any problem with it is an error).\n"
+         "  --progress: on stderr, while loading and localizing: a line redrawn in place (bar), a line at every\n"
+         "        10 % (lines), nothing (off); auto (default): bar on a terminal, else lines after 2 s; off with --quiet.\n"
+         "  Output CSV columns: query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n"
+         "\nParameters (name = default  (range unit), then what it is):\n"
       << alr::parameterHelp({ alr::ParameterGroup::kPreprocessor, alr::ParameterGroup::kLocalizer });
 }
 

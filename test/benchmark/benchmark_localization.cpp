@@ -33,7 +33,7 @@
 #include "along_route_localization/online_dtw.h"
 #include "along_route_localization/preprocessing.h"
 #include "along_route_localization/route_map.h"
-#include "ros/frame_source.h"
+#include "glue/frame_source.h"
 
 namespace arl = along_route_localization;
 
@@ -632,7 +632,7 @@ const NordlandRoute& nordlandRoute()
     return route;
   loaded = true;
   route.folder = nordlandFolder();
-  // The frame source of localize_offline itself (src/ros/frame_source.h): the same decoding and
+  // The frame source of localize_offline itself (src/glue/frame_source.h): the same decoding and
   // preprocessing as the runner.
   try
   {

@@ -1,4 +1,4 @@
-// libFuzzer target: the map loader (readMap, src/ros/map_io.cpp) on arbitrary file contents.
+// libFuzzer target: the map loader (readMap, src/glue/map_io.cpp) on arbitrary file contents.
 // Built and run by scripts/run_sanitizers.sh with AddressSanitizer and UndefinedBehaviorSanitizer.
 //
 // A map file is whatever the user points the localizer at: readMap must turn every file into a RouteMap
@@ -12,7 +12,7 @@
 #include <string>
 
 #include "along_route_localization/route_map.h"
-#include "ros/map_io.h"
+#include "glue/map_io.h"
 
 namespace
 {

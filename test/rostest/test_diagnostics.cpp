@@ -5,7 +5,7 @@
 
 #include <gtest/gtest.h>
 
-#include "ros/diagnostics.h"
+#include "glue/diagnostics.h"
 
 namespace arl = along_route_localization;
 

@@ -1,4 +1,4 @@
-// The map file (src/ros/map_io.*): round trip, the streaming writer's flush/rename contract, a writer
+// The map file (src/glue/map_io.*): round trip, the streaming writer's flush/rename contract, a writer
 // killed mid-recording, and a clear MapError for every kind of bad file.
 #include <gtest/gtest.h>
 
@@ -22,7 +22,7 @@
 #include <sensor_msgs/image_encodings.h>
 #include <std_msgs/String.h>
 
-#include "ros/map_io.h"
+#include "glue/map_io.h"
 
 namespace along_route_localization
 {

@@ -10,7 +10,7 @@
 
 #include <gtest/gtest.h>
 
-#include "ros/reconfigure.h"
+#include "glue/reconfigure.h"
 
 namespace arl = along_route_localization;
 

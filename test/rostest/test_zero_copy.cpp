@@ -26,7 +26,7 @@
 #include "along_route_localization/Localization.h"
 #include "along_route_localization/preprocessing.h"
 #include "along_route_localization/route_map.h"
-#include "ros/map_io.h"
+#include "glue/map_io.h"
 
 namespace arl = along_route_localization;
 

@@ -21,7 +21,7 @@
 #include <std_srvs/Trigger.h>
 
 #include "along_route_localization/preprocessing.h"
-#include "ros/map_io.h"
+#include "glue/map_io.h"
 
 namespace arl = along_route_localization;
 

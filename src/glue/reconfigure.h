@@ -1,7 +1,7 @@
 // dynamic_reconfigure configs (cfg/*.cfg) -> core parameters. One place, so the nodelets and the test
 // that holds the .cfg defaults equal to the core defaults use the same mapping.
-#ifndef ALONG_ROUTE_LOCALIZATION_ROS_RECONFIGURE_H
-#define ALONG_ROUTE_LOCALIZATION_ROS_RECONFIGURE_H
+#ifndef ALONG_ROUTE_LOCALIZATION_GLUE_RECONFIGURE_H
+#define ALONG_ROUTE_LOCALIZATION_GLUE_RECONFIGURE_H
 
 #include <string>
 #include <vector>
@@ -104,4 +104,4 @@ void logConfigReview(const ConfigReview& review, const std::string& logger, cons
 
 }  // namespace along_route_localization
 
-#endif  // ALONG_ROUTE_LOCALIZATION_ROS_RECONFIGURE_H
+#endif  // ALONG_ROUTE_LOCALIZATION_GLUE_RECONFIGURE_H

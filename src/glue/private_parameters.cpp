@@ -1,4 +1,4 @@
-#include "ros/private_parameters.h"
+#include "glue/private_parameters.h"
 
 #include "along_route_localization/parameters.h"
 
@@ -40,6 +40,15 @@ std::string mistypedSentence(const std::string& name, const XmlRpc::XmlRpcValue&
   return "~" + name + " = " + given + " is not " + wanted + "; refused, keeping " + kept;
 }
 
+std::string outOfRangeSentence(const std::string& name, double value, double lo, double hi)
+{
+  std::ostringstream text;
+  text << "~" << name << " = " << value << " is outside " << lo << " .. " << hi;
+  if (value < lo || value > hi)
+    text << "; dynamic_reconfigure uses " << (value < lo ? lo : hi) << " instead";
+  return text.str();
+}
+
 std::string unreadSentence(const std::string& name, const std::string& who, const std::set<std::string>& read)
 {
   std::string sentence = "~" + name + " is not a parameter of the " + who + " and is ignored";
@@ -57,15 +66,6 @@ std::string joined(const std::set<std::string>& names)
   for (const std::string& name : names)
     text += (text.empty() ? "" : ", ") + name;
   return text;
-}
-
-std::string outOfRangeSentence(const std::string& name, double value, double lo, double hi)
-{
-  std::ostringstream text;
-  text << "~" << name << " = " << value << " is outside " << lo << " .. " << hi;
-  if (value < lo || value > hi)
-    text << "; dynamic_reconfigure uses " << (value < lo ? lo : hi) << " instead";
-  return text.str();
 }
 
 }  // namespace along_route_localization

@@ -1,4 +1,4 @@
-#include "ros/map_io.h"
+#include "glue/map_io.h"
 
 #include <sys/stat.h>
 #include <unistd.h>

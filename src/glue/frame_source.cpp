@@ -1,4 +1,4 @@
-#include "ros/frame_source.h"
+#include "glue/frame_source.h"
 
 #include <sys/stat.h>
 
@@ -17,8 +17,8 @@
 #include <rosbag/view.h>
 #include <sensor_msgs/Image.h>
 
-#include "ros/image_message.h"
-#include "ros/map_io.h"
+#include "glue/image_message.h"
+#include "glue/map_io.h"
 
 namespace along_route_localization
 {

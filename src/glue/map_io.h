@@ -7,8 +7,8 @@
 //   topic "info"           std_msgs/String, "format=1;..." (what wrote the map)
 //   topic "motion"         along_route_localization/KeyframeMotion, optional: the taught motion, one message
 //                          per keyframe, each right after its keyframe (maps without it load all the same)
-#ifndef ALONG_ROUTE_LOCALIZATION_ROS_MAP_IO_H
-#define ALONG_ROUTE_LOCALIZATION_ROS_MAP_IO_H
+#ifndef ALONG_ROUTE_LOCALIZATION_GLUE_MAP_IO_H
+#define ALONG_ROUTE_LOCALIZATION_GLUE_MAP_IO_H
 
 #include <cstdint>
 #include <ctime>
@@ -163,4 +163,4 @@ private:
 
 }  // namespace along_route_localization
 
-#endif  // ALONG_ROUTE_LOCALIZATION_ROS_MAP_IO_H
+#endif  // ALONG_ROUTE_LOCALIZATION_GLUE_MAP_IO_H

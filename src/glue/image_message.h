@@ -1,7 +1,7 @@
 // What the core needs of an incoming sensor_msgs/Image, checked in one place for the preprocessor
 // nodelet and the offline tools' bag reader.
-#ifndef ALONG_ROUTE_LOCALIZATION_ROS_IMAGE_MESSAGE_H
-#define ALONG_ROUTE_LOCALIZATION_ROS_IMAGE_MESSAGE_H
+#ifndef ALONG_ROUTE_LOCALIZATION_GLUE_IMAGE_MESSAGE_H
+#define ALONG_ROUTE_LOCALIZATION_GLUE_IMAGE_MESSAGE_H
 
 #include <string>
 
@@ -27,4 +27,4 @@ ImageProblem imageMessageProblem(const sensor_msgs::Image& msg, PixelFormat* for
 
 }  // namespace along_route_localization
 
-#endif  // ALONG_ROUTE_LOCALIZATION_ROS_IMAGE_MESSAGE_H
+#endif  // ALONG_ROUTE_LOCALIZATION_GLUE_IMAGE_MESSAGE_H

@@ -1,7 +1,7 @@
 // What the nodelets share for their /diagnostics: a timer that survives ROS time going back, and the
 // record of the frames a nodelet did not use.
-#ifndef ALONG_ROUTE_LOCALIZATION_ROS_DIAGNOSTICS_H
-#define ALONG_ROUTE_LOCALIZATION_ROS_DIAGNOSTICS_H
+#ifndef ALONG_ROUTE_LOCALIZATION_GLUE_DIAGNOSTICS_H
+#define ALONG_ROUTE_LOCALIZATION_GLUE_DIAGNOSTICS_H
 
 #include <cstdint>
 #include <map>
@@ -60,4 +60,4 @@ private:
 
 }  // namespace along_route_localization
 
-#endif  // ALONG_ROUTE_LOCALIZATION_ROS_DIAGNOSTICS_H
+#endif  // ALONG_ROUTE_LOCALIZATION_GLUE_DIAGNOSTICS_H

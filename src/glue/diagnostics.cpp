@@ -1,4 +1,4 @@
-#include "ros/diagnostics.h"
+#include "glue/diagnostics.h"
 
 #include <algorithm>
 

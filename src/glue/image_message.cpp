@@ -1,4 +1,4 @@
-#include "ros/image_message.h"
+#include "glue/image_message.h"
 
 #include <sstream>
 

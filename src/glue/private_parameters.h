@@ -1,6 +1,6 @@
 // A nodelet's private parameters: which of those set on the parameter server it does not read.
-#ifndef ALONG_ROUTE_LOCALIZATION_ROS_PRIVATE_PARAMETERS_H
-#define ALONG_ROUTE_LOCALIZATION_ROS_PRIVATE_PARAMETERS_H
+#ifndef ALONG_ROUTE_LOCALIZATION_GLUE_PRIVATE_PARAMETERS_H
+#define ALONG_ROUTE_LOCALIZATION_GLUE_PRIVATE_PARAMETERS_H
 
 #include <set>
 #include <string>
@@ -80,10 +80,10 @@ std::string unreadSentence(const std::string& name, const std::string& who, cons
 /// "~name = value is outside lo .. hi; dynamic_reconfigure uses lo instead".
 std::string outOfRangeSentence(const std::string& name, double value, double lo, double hi);
 
-/// For each numeric parameter of a dynamic_reconfigure config whose .cfg declares a range (the route
-/// follower's; the localizer's, preprocessor's and map recorder's are corrected by the parameter table
-/// instead) set under private_nh outside it, a sentence saying so: dynamic_reconfigure clamps such a value
-/// without a word. Call before creating the reconfigure server (which writes the clamped values back).
+/// For each numeric parameter of a dynamic_reconfigure config set under private_nh outside the .cfg's
+/// range, a sentence saying so: dynamic_reconfigure clamps such a value without a word. Call before
+/// creating the reconfigure server (which writes the clamped values back). Only for a .cfg that declares
+/// ranges (RouteFollower.cfg; the others' values are corrected by the parameter table).
 template <class Config>
 std::vector<std::string> outOfRangeParameters(const ros::NodeHandle& private_nh)
 {
@@ -111,4 +111,4 @@ std::string joined(const std::set<std::string>& names);
 
 }  // namespace along_route_localization
 
-#endif  // ALONG_ROUTE_LOCALIZATION_ROS_PRIVATE_PARAMETERS_H
+#endif  // ALONG_ROUTE_LOCALIZATION_GLUE_PRIVATE_PARAMETERS_H

@@ -1,4 +1,4 @@
-#include "ros/reconfigure.h"
+#include "glue/reconfigure.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 // Frames from disk for the offline tools: image folders, bags with an image topic, recorder map files.
-#ifndef ALONG_ROUTE_LOCALIZATION_ROS_FRAME_SOURCE_H
-#define ALONG_ROUTE_LOCALIZATION_ROS_FRAME_SOURCE_H
+#ifndef ALONG_ROUTE_LOCALIZATION_GLUE_FRAME_SOURCE_H
+#define ALONG_ROUTE_LOCALIZATION_GLUE_FRAME_SOURCE_H
 
 #include <cstddef>
 #include <cstdint>
@@ -40,4 +40,4 @@ std::shared_ptr<RouteMap> loadMapFromPath(const std::string& path, const std::st
 
 }  // namespace along_route_localization
 
-#endif  // ALONG_ROUTE_LOCALIZATION_ROS_FRAME_SOURCE_H
+#endif  // ALONG_ROUTE_LOCALIZATION_GLUE_FRAME_SOURCE_H
