@@ -135,6 +135,23 @@ class FiguresTest(unittest.TestCase):
         self.assertAlmostEqual(f["median_m"], 0.1)
         self.assertAlmostEqual(f["distance_m"], 30.0)
 
+    def test_params_file_merges_the_given_sections(self):
+        import yaml
+        with tempfile.TemporaryDirectory() as folder:
+            extra = os.path.join(folder, "extra.yaml")
+            with open(extra, "w") as f:
+                f.write("localizer:\n  max_shift_px: 6\nroute_follower:\n  homing_gain: 2.0\n")
+            path = os.path.join(folder, "params.yaml")
+            closed_loop.write_params(path, extra)
+            with open(path) as f:
+                params = yaml.safe_load(f)
+            self.assertEqual(params, {"localizer": {"horizontal_fov_deg": 90.0, "max_shift_px": 6},
+                                      "route_follower": {"homing_gain": 2.0}})
+            with open(extra, "w") as f:
+                f.write("max_shift_px: 6\n")
+            with self.assertRaises(ValueError):
+                closed_loop.write_params(path, extra)
+
     def test_offsets(self):
         self.assertEqual(closed_loop.parse_offset("1:10"), (1.0, 10.0))
         self.assertEqual(closed_loop.parse_offset("-0.5:-5"), (-0.5, -5.0))

@@ -35,8 +35,7 @@ class ClosedLoopTest(unittest.TestCase):
         args = run.parse_args(["--output", cls.tmp, "--route-length-m", str(ROUTE_LENGTH_M), "--offsets", "1:10",
                                "--open-loop"])
         params_file = os.path.join(cls.tmp, "params.yaml")
-        with open(params_file, "w") as f:
-            f.write("localizer:\n  horizontal_fov_deg: 90.0\n")
+        run.write_params(params_file)
         log_dir = os.path.join(cls.tmp, "logs")
         os.makedirs(log_dir)
         env = dict(os.environ)
