@@ -4,10 +4,16 @@
 //             <namespace of image_preprocessed>/preprocessing_params (latched, from the preprocessor):
 //             stored in the map, so the map records exactly what made its keyframes
 //             odom (nav_msgs/Odometry, optional: only the min_distance policy reads it)
+//             motion (optional; geometry_msgs/Twist, or nav_msgs/Odometry with ~motion_type odometry): the
+//             taught motion stored with each keyframe on the map's topic "motion" (KeyframeMotion.msg):
+//             the mean velocity of the messages since the previous keyframe (the latest when none came),
+//             the distance since the previous keyframe (twist: |linear.x| integrated over receipt times,
+//             each held at most 1 s; odometry: the path of the poses). Keyframes taken before the first
+//             motion message get none.
 // Publishes:  /diagnostics (state, keyframes taken and written, the writer's backlog, frames not
 //             recorded and why the last one was not)
 // Services:   ~start, ~pause, ~finish (std_srvs/Trigger)
-// Parameters: ~map (path of the map file), ~autostart (true), ~flush_period (1.0 s),
+// Parameters: ~map (path of the map file), ~autostart (true), ~flush_period (1.0 s), ~motion_type (twist),
 //             ~max_queue (1000 keyframes waiting for the writer), ~queue_size (100);
 //             keyframe policy in cfg/MapRecorder.cfg (dynamic)
 //
@@ -33,6 +39,7 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <image_transport/image_transport.h>
+#include <geometry_msgs/Twist.h>
 #include <nav_msgs/Odometry.h>
 #include <nodelet/nodelet.h>
 #include <sensor_msgs/image_encodings.h>
@@ -75,6 +82,11 @@ private:
   void imageCb(const sensor_msgs::ImageConstPtr& msg);
   void paramsCb(const std_msgs::StringConstPtr& msg);
   void odomCb(const nav_msgs::OdometryConstPtr& msg);
+  void motionTwistCb(const geometry_msgs::TwistConstPtr& msg);
+  void motionOdomCb(const nav_msgs::OdometryConstPtr& msg);
+  void addMotion(double linear_mps, double angular_rps);
+  /// The motion since the previous keyframe (null before the first motion message); starts the next sum.
+  KeyframeMotionPtr takeMotion(const std_msgs::Header& keyframe_header, bool first_keyframe);
   void configCb(MapRecorderConfig& config, uint32_t level);
   bool startCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool pauseCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
@@ -99,7 +111,7 @@ private:
 
   std::shared_ptr<image_transport::ImageTransport> it_;
   image_transport::Subscriber image_sub_;
-  ros::Subscriber params_sub_, odom_sub_;
+  ros::Subscriber params_sub_, odom_sub_, motion_sub_;
   ros::ServiceServer start_srv_, pause_srv_, finish_srv_;
   std::shared_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostics_timer_;
@@ -118,13 +130,28 @@ private:
   double last_x_ = 0.0, last_y_ = 0.0, last_z_ = 0.0;
   uint64_t frames_seen_ = 0;  // while recording
   DroppedFrames refused_;     // frames seen while recording and not recorded
+  // The taught motion since the previous keyframe (same queue).
+  uint64_t motion_messages_ = 0;
+  double motion_sum_linear_ = 0.0, motion_sum_angular_ = 0.0;
+  int motion_count_ = 0;
+  double latest_linear_ = 0.0, latest_angular_ = 0.0;
+  ros::Time latest_motion_time_;
+  double motion_distance_m_ = 0.0;
+  bool have_motion_pose_ = false;
+  double motion_x_ = 0.0, motion_y_ = 0.0, motion_z_ = 0.0;
+  uint64_t keyframes_with_motion_ = 0;
 
   // Shared between the callbacks and the writer thread; guarded by queue_mutex_.
   std::mutex queue_mutex_;
   std::condition_variable writer_cv_;    // wakes the writer: keyframes, finish, stop
   std::condition_variable finished_cv_;  // wakes ~finish: the writer closed the map
   State state_ = State::kIdle;
-  std::deque<sensor_msgs::ImageConstPtr> queue_;
+  struct QueuedKeyframe
+  {
+    sensor_msgs::ImageConstPtr image;
+    KeyframeMotionConstPtr motion;  // null when no motion was recorded
+  };
+  std::deque<QueuedKeyframe> queue_;
   std::shared_ptr<const PreprocessingParams> recording_params_;  // of the map being written
   size_t keyframes_queued_ = 0;
   size_t keyframes_written_ = 0;
@@ -143,8 +170,8 @@ void MapRecorderNodelet::onInit()
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& private_nh = getPrivateNodeHandle();
 
-  const std::set<std::string> own = { "map", "autostart", "flush_period", "max_queue", "queue_size",
-                                      "image_transport" };
+  const std::set<std::string> own = { "map",        "autostart",       "flush_period", "max_queue",
+                                      "queue_size", "image_transport", "motion_type" };
   std::set<std::string> read = configParameterNames<MapRecorderConfig>();
   read.insert(own.begin(), own.end());
   for (const std::string& name : unreadParameters(private_nh, read))
@@ -216,6 +243,17 @@ void MapRecorderNodelet::onInit()
   const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
   params_sub_ = nh.subscribe(params_topic, 1, &MapRecorderNodelet::paramsCb, this);
   odom_sub_ = nh.subscribe("odom", 10, &MapRecorderNodelet::odomCb, this);
+  std::string motion_type = "twist";
+  private_nh.param("motion_type", motion_type, motion_type);
+  if (motion_type != "twist" && motion_type != "odometry")
+  {
+    NODELET_ERROR("~motion_type must be twist or odometry ('%s'); using twist", motion_type.c_str());
+    motion_type = "twist";
+  }
+  if (motion_type == "twist")
+    motion_sub_ = nh.subscribe("motion", 100, &MapRecorderNodelet::motionTwistCb, this);
+  else
+    motion_sub_ = nh.subscribe("motion", 100, &MapRecorderNodelet::motionOdomCb, this);
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
   const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh);
   image_sub_ = it_->subscribe("image_preprocessed", static_cast<uint32_t>(std::max(1, queue_size)),
@@ -268,6 +306,64 @@ void MapRecorderNodelet::odomCb(const nav_msgs::OdometryConstPtr& msg)
   last_y_ = p.y;
   last_z_ = p.z;
   have_odom_ = true;
+}
+
+void MapRecorderNodelet::addMotion(double linear_mps, double angular_rps)
+{
+  if (!std::isfinite(linear_mps) || !std::isfinite(angular_rps))
+  {
+    NODELET_WARN_THROTTLE(5.0, "Ignoring a motion message on %s with a non-finite velocity",
+                          motion_sub_.getTopic().c_str());
+    return;
+  }
+  ++motion_messages_;
+  motion_sum_linear_ += linear_mps;
+  motion_sum_angular_ += angular_rps;
+  ++motion_count_;
+  latest_linear_ = linear_mps;
+  latest_angular_ = angular_rps;
+}
+
+void MapRecorderNodelet::motionTwistCb(const geometry_msgs::TwistConstPtr& msg)
+{
+  // A velocity command holds until the next one; a silence longer than 1 s is taken as standing still
+  // (bases stop on a cmd_vel timeout), so it adds at most 1 s of the last speed.
+  const ros::Time now = ros::Time::now();
+  if (motion_messages_ > 0 && now > latest_motion_time_)
+    motion_distance_m_ += std::fabs(latest_linear_) * std::min(1.0, (now - latest_motion_time_).toSec());
+  latest_motion_time_ = now;
+  addMotion(msg->linear.x, msg->angular.z);
+}
+
+void MapRecorderNodelet::motionOdomCb(const nav_msgs::OdometryConstPtr& msg)
+{
+  const geometry_msgs::Point& p = msg->pose.pose.position;
+  if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))
+  {
+    if (have_motion_pose_)
+      motion_distance_m_ += std::sqrt((p.x - motion_x_) * (p.x - motion_x_) + (p.y - motion_y_) * (p.y - motion_y_) +
+                                      (p.z - motion_z_) * (p.z - motion_z_));
+    motion_x_ = p.x;
+    motion_y_ = p.y;
+    motion_z_ = p.z;
+    have_motion_pose_ = true;
+  }
+  addMotion(msg->twist.twist.linear.x, msg->twist.twist.angular.z);
+}
+
+KeyframeMotionPtr MapRecorderNodelet::takeMotion(const std_msgs::Header& keyframe_header, bool first_keyframe)
+{
+  if (motion_messages_ == 0)
+    return KeyframeMotionPtr();
+  KeyframeMotionPtr motion = boost::make_shared<KeyframeMotion>();
+  motion->header = keyframe_header;
+  motion->linear_mps = motion_count_ > 0 ? motion_sum_linear_ / motion_count_ : latest_linear_;
+  motion->angular_rps = motion_count_ > 0 ? motion_sum_angular_ / motion_count_ : latest_angular_;
+  motion->distance_m = first_keyframe ? 0.0 : motion_distance_m_;
+  motion_sum_linear_ = motion_sum_angular_ = 0.0;
+  motion_count_ = 0;
+  motion_distance_m_ = 0.0;
+  return motion;
 }
 
 bool MapRecorderNodelet::isKeyframe(const sensor_msgs::ImageConstPtr& msg, const KeyframePolicy& policy)
@@ -378,7 +474,12 @@ void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     }
     if (!recording_params_)
       recording_params_ = announced_params_;
-    queue_.push_back(msg);
+    QueuedKeyframe keyframe;
+    keyframe.image = msg;
+    keyframe.motion = takeMotion(msg->header, keyframes_queued_ == 0);
+    if (keyframe.motion)
+      ++keyframes_with_motion_;
+    queue_.push_back(keyframe);
     ++keyframes_queued_;
   }
   writer_cv_.notify_one();
@@ -428,6 +529,9 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
   stat.add("keyframes taken", queued);
   stat.add("keyframes written", written);
   stat.add("keyframes waiting for the writer", backlog);
+  stat.add("motion topic", motion_sub_.getTopic());
+  stat.add("motion messages", motion_messages_);
+  stat.add("keyframes with motion", keyframes_with_motion_);
   refused_.addTo(stat, "frame");
 }
 
@@ -510,7 +614,7 @@ void MapRecorderNodelet::writerLoop()
   {
     writer_cv_.wait_until(lock, next_flush,
                           [this] { return stop_writer_ || finish_requested_ || !queue_.empty(); });
-    std::deque<sensor_msgs::ImageConstPtr> batch;
+    std::deque<QueuedKeyframe> batch;
     batch.swap(queue_);
     const bool stop = stop_writer_;
     const bool finish = finish_requested_ || stop_writer_;
@@ -522,8 +626,8 @@ void MapRecorderNodelet::writerLoop()
     {
       if (!batch.empty() && !writer)
         writer.reset(new MapWriter(map_path_, *params, "recorder=" + getName()));
-      for (const sensor_msgs::ImageConstPtr& keyframe : batch)
-        writer->add(keyframe);
+      for (const QueuedKeyframe& keyframe : batch)
+        writer->add(keyframe.image, keyframe.motion);
       const auto now = std::chrono::steady_clock::now();
       if (writer && (finish || now >= next_flush))
       {

@@ -572,6 +572,35 @@ sensor_msgs::ImagePtr keyframeMessage(const cv::Mat& preprocessed, int64_t stamp
   return msg;
 }
 
+std::map<int, TaughtMotion> readTaughtMotion(const std::string& path)
+{
+  std::map<int, TaughtMotion> motion;
+  try
+  {
+    rosbag::Bag bag(path, rosbag::bagmode::Read);
+    for (const rosbag::MessageInstance& message : rosbag::View(bag, rosbag::TopicQuery(kMapMotionTopic)))
+    {
+      const KeyframeMotionConstPtr recorded = message.instantiate<KeyframeMotion>();
+      if (!recorded)
+        throw MapError("map file " + inQuotes(path) + ": topic '" + kMapMotionTopic + "' has type " +
+                       message.getDataType() + ", expected along_route_localization/KeyframeMotion");
+      if (!std::isfinite(recorded->linear_mps) || !std::isfinite(recorded->angular_rps) ||
+          !std::isfinite(recorded->distance_m))
+        throw MapError("map file " + inQuotes(path) + ": the taught motion of keyframe " +
+                       std::to_string(recorded->keyframe) + " is not finite");
+      TaughtMotion& taught = motion[static_cast<int>(std::min<uint32_t>(recorded->keyframe, 1u << 30))];
+      taught.linear_mps = recorded->linear_mps;
+      taught.angular_rps = recorded->angular_rps;
+      taught.distance_m = recorded->distance_m;
+    }
+  }
+  catch (const rosbag::BagException& e)
+  {
+    throw MapError("map file " + inQuotes(path) + ": cannot read its taught motion: " + e.what());
+  }
+  return motion;
+}
+
 void writeMap(const std::string& path, const RouteMap& map)
 {
   MapWriter writer(path, map.params(), "writeMap");
@@ -650,7 +679,7 @@ MapWriter::~MapWriter()
   }
 }
 
-void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe)
+void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe, const KeyframeMotionConstPtr& motion)
 {
   if (closed_)
     throw MapError("map " + inQuotes(path_) + " is closed; no keyframes can be added");
@@ -666,6 +695,7 @@ void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe)
                    " px (" + std::to_string(keyframe->data.size()) + " bytes), but the map's preprocessing makes " +
                    std::to_string(params_.output_width) + "x" + std::to_string(params_.output_height) + " px");
   pending_.push_back(keyframe);
+  pending_motion_.push_back(motion);
 }
 
 void MapWriter::flush()
@@ -714,6 +744,12 @@ void MapWriter::flush()
         bag.write(kMapPreprocessingTopic, bag_time, preprocessing);
       }
       bag.write(kMapKeyframesTopic, bag_time, pending_[i]);
+      if (pending_motion_[i])
+      {
+        KeyframeMotion motion = *pending_motion_[i];
+        motion.keyframe = static_cast<uint32_t>(written_ + i);
+        bag.write(kMapMotionTopic, bag_time, motion);
+      }
     }
     bag.close();
     last_bag_time_ = bag_time;
@@ -726,6 +762,7 @@ void MapWriter::flush()
     throw MapError("cannot rename " + inQuotes(active) + " to " + inQuotes(path_) + ": " + std::strerror(errno));
   written_ += pending_.size();
   pending_.clear();
+  pending_motion_.clear();
 }
 
 void MapWriter::close()

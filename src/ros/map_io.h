@@ -5,18 +5,23 @@
 //   topic "keyframes"      sensor_msgs/Image, mono8, map order; header.stamp = the keyframe's source stamp
 //   topic "preprocessing"  std_msgs/String, PreprocessingParams::serialize() (exactly one message)
 //   topic "info"           std_msgs/String, "format=1;..." (what wrote the map)
+//   topic "motion"         along_route_localization/KeyframeMotion, optional: the taught motion, one message
+//                          per keyframe, each right after its keyframe (maps without it load all the same)
 #ifndef ALONG_ROUTE_LOCALIZATION_ROS_MAP_IO_H
 #define ALONG_ROUTE_LOCALIZATION_ROS_MAP_IO_H
 
 #include <cstdint>
 #include <ctime>
+#include <map>
 #include <string>
 #include <vector>
 
 #include <ros/time.h>
 #include <sensor_msgs/Image.h>
 
+#include "along_route_localization/KeyframeMotion.h"
 #include "along_route_localization/preprocessing.h"
+#include "along_route_localization/route_follower.h"
 #include "along_route_localization/route_map.h"
 
 namespace along_route_localization
@@ -25,6 +30,7 @@ namespace along_route_localization
 constexpr char kMapKeyframesTopic[] = "keyframes";
 constexpr char kMapPreprocessingTopic[] = "preprocessing";
 constexpr char kMapInfoTopic[] = "info";
+constexpr char kMapMotionTopic[] = "motion";
 constexpr int kMapFormat = 1;
 
 /// The preprocessor announces the parameters that make its images on a latched std_msgs/String
@@ -56,6 +62,10 @@ BagFileHead bagFileHead(const std::string& path);
 /// no or unparsable preprocessing parameters, no keyframes, keyframes of another encoding or size
 /// than the parameters say.
 RouteMap readMap(const std::string& path);
+
+/// The taught motion a map file holds (topic "motion"), by keyframe index; empty for a map recorded
+/// without it. Throws MapError when the file cannot be read as a bag or the topic has another type.
+std::map<int, TaughtMotion> readTaughtMotion(const std::string& path);
 
 /// Writes a whole map at once (through MapWriter). Throws MapError.
 void writeMap(const std::string& path, const RouteMap& map);
@@ -95,9 +105,10 @@ public:
   MapWriter(const MapWriter&) = delete;
   MapWriter& operator=(const MapWriter&) = delete;
 
-  /// Buffers a keyframe (held by pointer, not copied). Throws MapError unless it is mono8 (or 8UC1)
-  /// of the parameters' output size.
-  void add(const sensor_msgs::ImageConstPtr& keyframe);
+  /// Buffers a keyframe (held by pointer, not copied) and, when given, the motion taught there (written
+  /// with the keyframe's map index, whatever its `keyframe` field says). Throws MapError unless the
+  /// keyframe is mono8 (or 8UC1) of the parameters' output size.
+  void add(const sensor_msgs::ImageConstPtr& keyframe, const KeyframeMotionConstPtr& motion = KeyframeMotionConstPtr());
 
   /// Writes the buffered keyframes; afterwards `<path>` is a complete map. No-op when nothing is
   /// buffered. Throws MapError (the keyframes stay buffered, so a later flush may retry).
@@ -121,6 +132,7 @@ private:
   PreprocessingParams params_;
   std::string writer_info_;
   std::vector<sensor_msgs::ImageConstPtr> pending_;
+  std::vector<KeyframeMotionConstPtr> pending_motion_;  // one per pending keyframe, null where none
   size_t written_ = 0;
   ros::Time last_bag_time_;
   bool closed_ = false;

@@ -13,6 +13,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -392,6 +393,72 @@ TEST_F(MapIoTest, WriterRefusesKeyframesThatDoNotMatchItsParameters)
   EXPECT_FALSE(exists(path("map.bag"))) << "nothing recorded, nothing written";
   EXPECT_FALSE(exists(path("map.bag.active")));
   EXPECT_THROW(MapWriter(path("no/such/dir/map.bag"), PreprocessingParams()), MapError);
+}
+
+KeyframeMotionPtr keyframeMotion(double linear_mps, double angular_rps, double distance_m, uint32_t keyframe = 99)
+{
+  KeyframeMotionPtr motion = boost::make_shared<KeyframeMotion>();
+  motion->keyframe = keyframe;  // the writer numbers them in map order, whatever this says
+  motion->linear_mps = linear_mps;
+  motion->angular_rps = angular_rps;
+  motion->distance_m = distance_m;
+  return motion;
+}
+
+TEST_F(MapIoTest, TaughtMotionRoundTripsInMapOrderAcrossFlushes)
+{
+  cv::RNG rng(3);
+  const std::string file = path("motion.bag");
+  {
+    MapWriter writer(file, PreprocessingParams());
+    writer.add(keyframeMessage(randomKeyframe(rng), 1000000000LL), keyframeMotion(0.5, 0.0, 0.0));
+    writer.add(keyframeMessage(randomKeyframe(rng), 2000000000LL));  // none recorded for keyframe 1
+    writer.add(keyframeMessage(randomKeyframe(rng), 3000000000LL), keyframeMotion(0.75, -0.25, 1.5));
+    writer.flush();
+    writer.add(keyframeMessage(randomKeyframe(rng), 4000000000LL), keyframeMotion(1.0, 0.125, 0.875));
+    writer.add(keyframeMessage(randomKeyframe(rng), 5000000000LL), keyframeMotion(0.25, 0.5, 0.0625));
+    writer.close();
+  }
+  EXPECT_EQ(5u, readMap(file).size());
+  const std::map<int, TaughtMotion> motion = readTaughtMotion(file);
+  ASSERT_EQ(4u, motion.size());
+  EXPECT_EQ(0u, motion.count(1));
+  const int indices[] = { 0, 2, 3, 4 };
+  const double linear[] = { 0.5, 0.75, 1.0, 0.25 }, angular[] = { 0.0, -0.25, 0.125, 0.5 },
+               distance[] = { 0.0, 1.5, 0.875, 0.0625 };
+  for (int i = 0; i < 4; ++i)
+  {
+    ASSERT_EQ(1u, motion.count(indices[i])) << "keyframe " << indices[i];
+    EXPECT_EQ(linear[i], motion.at(indices[i]).linear_mps) << "keyframe " << indices[i];
+    EXPECT_EQ(angular[i], motion.at(indices[i]).angular_rps) << "keyframe " << indices[i];
+    EXPECT_EQ(distance[i], motion.at(indices[i]).distance_m) << "keyframe " << indices[i];
+  }
+}
+
+TEST_F(MapIoTest, MapsWithoutTaughtMotionLoadAndSayTheyHaveNone)
+{
+  const std::string file = writeTestMap("old.bag", 4);
+  EXPECT_EQ(4u, readMap(file).size());
+  EXPECT_TRUE(readTaughtMotion(file).empty());
+}
+
+TEST_F(MapIoTest, AMotionTopicOfAnotherTypeIsNamed)
+{
+  const std::string file = writeTestMap("foreign.bag", 2);
+  {
+    rosbag::Bag bag(file, rosbag::bagmode::Append);
+    bag.write(kMapMotionTopic, ros::Time(100, 0), text("not a motion"));
+  }
+  EXPECT_EQ(2u, readMap(file).size());  // still a map for localization
+  try
+  {
+    readTaughtMotion(file);
+    ADD_FAILURE() << "no MapError";
+  }
+  catch (const MapError& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("has type std_msgs/String"), std::string::npos) << e.what();
+  }
 }
 
 TEST(MapIo, ParameterDifferenceNamesTheFieldsThatDiffer)

@@ -1,0 +1,154 @@
+// Navigation: drive the taught route again from each localization. The paper's second contribution
+// steers with the homing angle computed from the match; this controller adds the motion recorded at
+// the matched keyframe (the feed-forward) to a proportional turn on the homing angle (the feedback),
+// and decides when it is not safe to drive (low confidence, lost, no localization, end of the route).
+//
+// Time is an argument everywhere (seconds, any epoch, non-decreasing): nothing here reads a clock.
+#ifndef ALONG_ROUTE_LOCALIZATION_ROUTE_FOLLOWER_H
+#define ALONG_ROUTE_LOCALIZATION_ROUTE_FOLLOWER_H
+
+#include <cstddef>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "along_route_localization/localizer.h"
+
+namespace along_route_localization
+{
+
+/// The robot's motion while the teach took one keyframe: its forward speed (m/s) and turn rate (rad/s,
+/// REP-103: positive = left), averaged over the velocity messages since the previous keyframe, and the
+/// distance travelled since the previous keyframe (m; 0 for the first keyframe).
+struct TaughtMotion
+{
+  double linear_mps = 0.0;
+  double angular_rps = 0.0;
+  double distance_m = 0.0;
+};
+
+/// The motion of each of `keyframes` keyframes from the ones recorded (keyframe index -> motion): a
+/// keyframe without a record takes the one of the nearest recorded keyframe (the earlier one on a tie),
+/// e.g. the keyframes taken before the velocity topic first spoke. Empty when nothing was recorded or
+/// keyframes is 0; records of indices >= keyframes are ignored.
+std::vector<TaughtMotion> completeTaughtMotion(const std::map<int, TaughtMotion>& recorded, size_t keyframes);
+
+/// Physical quantities a user can reason about; cfg/RouteFollower.cfg exposes them all.
+struct RouteFollowerParams
+{
+  double homing_gain = 1.0;             ///< rad/s of turn per rad of homing angle
+  double max_homing_turn_rps = 0.5;     ///< bound of the homing term |gain x angle|, rad/s
+  double homing_time_constant_s = 0.3;  ///< first-order low-pass of the homing angle, s (0 = none)
+  double speed_factor = 1.0;            ///< forward speed = taught speed x this (and the taught turn rate too)
+  double min_confidence = 0.2;          ///< a localization below this counts as low confidence
+  int slow_after_frames = 3;            ///< consecutive low-confidence localizations before slowing
+  int stop_after_frames = 8;            ///< consecutive low-confidence localizations before stopping
+  double slow_factor = 0.5;             ///< fraction of the speed while slowing
+  double watchdog_timeout_s = 1.0;      ///< stop when no localization came for this long, s
+  double max_linear_accel = 0.5;        ///< bound of the change of the forward speed, m/s^2
+  double max_angular_accel = 1.0;       ///< bound of the change of the turn rate, rad/s^2
+
+  /// Empty when valid, else a sentence naming the first invalid field.
+  std::string validate() const;
+};
+
+/// One localization as the follower reads it (Localization.msg).
+struct FollowerInput
+{
+  LocalizationStatus status = LocalizationStatus::kInitializing;
+  int keyframe = -1;
+  double confidence = 0.0;
+  double homing_angle_rad = 0.0;  ///< REP-103: positive = turn left to get back onto the route
+};
+
+/// A velocity command (geometry_msgs/Twist linear.x, angular.z).
+struct FollowerCommand
+{
+  double linear_mps = 0.0;
+  double angular_rps = 0.0;
+};
+
+/// The controller. Its command at time t is the target
+///   v = s * speed_factor * v_taught[k]
+///   w = s * (speed_factor * w_taught[k] + clamp(homing_gain * h_filtered, +-max_homing_turn_rps))
+/// (k the matched keyframe, h_filtered the low-passed homing angle, s the safety scale: 1, slow_factor
+/// after slow_after_frames low-confidence localizations in a row, 0 after stop_after_frames, while lost or
+/// initializing, at the end of the route, and when localizations stopped coming), approached from the
+/// previous command at no more than max_linear_accel / max_angular_accel: a jump of the matched keyframe or
+/// a stop never makes a jump in the command. The taught turn rate is scaled like the speed so that the
+/// path keeps the taught curvature.
+///
+/// States: idle (before start), following, paused, stopped (~stop), finished (end of the route). Only
+/// following drives; the others ramp the command down to zero.
+class RouteFollower
+{
+public:
+  enum class State
+  {
+    kIdle,
+    kFollowing,
+    kPaused,
+    kStopped,
+    kFinished
+  };
+
+  /// motion: one per keyframe of the map (completeTaughtMotion). Throws std::invalid_argument when empty
+  /// or when params are invalid.
+  explicit RouteFollower(std::vector<TaughtMotion> motion, const RouteFollowerParams& params = RouteFollowerParams());
+
+  /// Throws std::invalid_argument when invalid (the old ones stay).
+  void setParams(const RouteFollowerParams& params);
+  const RouteFollowerParams& params() const { return params_; }
+
+  /// Services. Each returns whether it changed the state and says what happened in `message`.
+  /// start: from idle, paused, stopped or finished; clears the low-confidence count and the filter.
+  bool start(double now_s, std::string* message);
+  /// pause: from following; start resumes.
+  bool pause(std::string* message);
+  /// stop: from any state but stopped and idle.
+  bool stop(std::string* message);
+
+  /// A localization received at now_s. Its status END_OF_ROUTE finishes the route.
+  void localization(const FollowerInput& input, double now_s);
+
+  /// The command to send at now_s (call at the control rate, times non-decreasing).
+  FollowerCommand command(double now_s);
+
+  State state() const { return state_; }
+  /// Why the target is what it is: "following", "slowing: ...", "stopped: ...".
+  const std::string& reason() const { return reason_; }
+  /// The target of the last command() before the rate limits, and the safety scale s in it.
+  const FollowerCommand& target() const { return target_; }
+  double safetyScale() const { return scale_; }
+  /// True while the follower should publish: following, or still ramping down to zero.
+  bool driving() const;
+  int lowConfidenceFrames() const { return low_frames_; }
+  double filteredHomingAngle() const { return homing_filtered_rad_; }
+  size_t keyframes() const { return motion_.size(); }
+  int lastKeyframe() const { return have_input_ ? last_input_.keyframe : -1; }
+
+private:
+  void computeTarget(double now_s);
+
+  std::vector<TaughtMotion> motion_;
+  RouteFollowerParams params_;
+  State state_ = State::kIdle;
+  std::string reason_ = "idle: call start";
+
+  bool have_input_ = false;
+  FollowerInput last_input_;
+  double last_input_s_ = 0.0;
+  double homing_filtered_rad_ = 0.0;
+  int low_frames_ = 0;
+
+  FollowerCommand target_, command_;
+  double scale_ = 0.0;
+  bool have_command_time_ = false;
+  double command_s_ = 0.0;
+};
+
+std::string toString(RouteFollower::State state);
+
+}  // namespace along_route_localization
+
+#endif  // ALONG_ROUTE_LOCALIZATION_ROUTE_FOLLOWER_H

@@ -1,0 +1,303 @@
+#include "along_route_localization/route_follower.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iterator>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+namespace along_route_localization
+{
+namespace
+{
+
+double approach(double from, double to, double max_step)
+{
+  if (to > from + max_step)
+    return from + max_step;
+  if (to < from - max_step)
+    return from - max_step;
+  return to;
+}
+
+std::string formatted(const char* format, double a, double b = 0.0, double c = 0.0)
+{
+  char text[256];
+  std::snprintf(text, sizeof(text), format, a, b, c);
+  return text;
+}
+
+}  // namespace
+
+std::vector<TaughtMotion> completeTaughtMotion(const std::map<int, TaughtMotion>& recorded, size_t keyframes)
+{
+  std::vector<TaughtMotion> motion;
+  auto valid_end = recorded.lower_bound(static_cast<int>(std::min<size_t>(keyframes, 1u << 30)));
+  auto valid_begin = recorded.lower_bound(0);
+  if (keyframes == 0 || valid_begin == valid_end)
+    return motion;
+  motion.reserve(keyframes);
+  for (size_t k = 0; k < keyframes; ++k)
+  {
+    const int index = static_cast<int>(k);
+    auto after = recorded.lower_bound(index);  // first record at or after k
+    if (after != valid_end && after->first == index)
+    {
+      motion.push_back(after->second);
+      continue;
+    }
+    if (after == valid_begin)
+    {
+      motion.push_back(after->second);
+      continue;
+    }
+    auto before = std::prev(after);
+    if (after == valid_end || index - before->first <= after->first - index)
+      motion.push_back(before->second);
+    else
+      motion.push_back(after->second);
+  }
+  return motion;
+}
+
+std::string RouteFollowerParams::validate() const
+{
+  std::ostringstream e;
+  const auto finite_at_least = [](double value, double low) { return std::isfinite(value) && value >= low; };
+  if (!finite_at_least(homing_gain, 0.0))
+    e << "homing_gain must be >= 0, got " << homing_gain;
+  else if (!finite_at_least(max_homing_turn_rps, 0.0))
+    e << "max_homing_turn_rps must be >= 0, got " << max_homing_turn_rps;
+  else if (!finite_at_least(homing_time_constant_s, 0.0))
+    e << "homing_time_constant_s must be >= 0, got " << homing_time_constant_s;
+  else if (!finite_at_least(speed_factor, 0.0))
+    e << "speed_factor must be >= 0, got " << speed_factor;
+  else if (!(min_confidence >= 0.0 && min_confidence <= 1.0))
+    e << "min_confidence must be in [0, 1], got " << min_confidence;
+  else if (slow_after_frames < 1)
+    e << "slow_after_frames must be >= 1, got " << slow_after_frames;
+  else if (stop_after_frames < slow_after_frames)
+    e << "stop_after_frames must be >= slow_after_frames (" << slow_after_frames << "), got " << stop_after_frames;
+  else if (!(slow_factor >= 0.0 && slow_factor <= 1.0))
+    e << "slow_factor must be in [0, 1], got " << slow_factor;
+  else if (!(std::isfinite(watchdog_timeout_s) && watchdog_timeout_s > 0.0))
+    e << "watchdog_timeout_s must be > 0, got " << watchdog_timeout_s;
+  else if (!(std::isfinite(max_linear_accel) && max_linear_accel > 0.0))
+    e << "max_linear_accel must be > 0, got " << max_linear_accel;
+  else if (!(std::isfinite(max_angular_accel) && max_angular_accel > 0.0))
+    e << "max_angular_accel must be > 0, got " << max_angular_accel;
+  return e.str();
+}
+
+std::string toString(RouteFollower::State state)
+{
+  switch (state)
+  {
+    case RouteFollower::State::kIdle:
+      return "idle";
+    case RouteFollower::State::kFollowing:
+      return "following";
+    case RouteFollower::State::kPaused:
+      return "paused";
+    case RouteFollower::State::kStopped:
+      return "stopped";
+    case RouteFollower::State::kFinished:
+      return "finished";
+  }
+  return "unknown";
+}
+
+RouteFollower::RouteFollower(std::vector<TaughtMotion> motion, const RouteFollowerParams& params)
+  : motion_(std::move(motion))
+{
+  if (motion_.empty())
+    throw std::invalid_argument("the map holds no taught motion: the follower cannot drive it (teach again with "
+                                "the velocity topic recorded)");
+  setParams(params);
+}
+
+void RouteFollower::setParams(const RouteFollowerParams& params)
+{
+  const std::string invalid = params.validate();
+  if (!invalid.empty())
+    throw std::invalid_argument(invalid);
+  params_ = params;
+}
+
+bool RouteFollower::driving() const
+{
+  return state_ == State::kFollowing || command_.linear_mps != 0.0 || command_.angular_rps != 0.0;
+}
+
+bool RouteFollower::start(double now_s, std::string* message)
+{
+  if (state_ == State::kFollowing)
+  {
+    *message = "already following";
+    return false;
+  }
+  const State before = state_;
+  if (!driving())
+  {
+    // The ramp starts now, not at the last command (which may be long ago).
+    command_s_ = now_s;
+    have_command_time_ = true;
+  }
+  low_frames_ = 0;
+  homing_filtered_rad_ = 0.0;
+  state_ = State::kFollowing;
+  *message = before == State::kPaused ? "resumed following" : "started following";
+  return true;
+}
+
+bool RouteFollower::pause(std::string* message)
+{
+  if (state_ != State::kFollowing)
+  {
+    *message = "not following (" + toString(state_) + ")";
+    return false;
+  }
+  state_ = State::kPaused;
+  *message = "paused: the robot slows to a stop; start resumes";
+  return true;
+}
+
+bool RouteFollower::stop(std::string* message)
+{
+  if (state_ == State::kStopped || state_ == State::kIdle)
+  {
+    *message = "not following (" + toString(state_) + ")";
+    return false;
+  }
+  state_ = State::kStopped;
+  *message = "stopped: the robot slows to a stop; start follows again";
+  return true;
+}
+
+void RouteFollower::localization(const FollowerInput& input, double now_s)
+{
+  const bool on_route =
+      input.status == LocalizationStatus::kTracking || input.status == LocalizationStatus::kEndOfRoute;
+  if (!on_route)
+  {
+    // Lost or initializing: the homing angle and the confidence count start afresh with the track.
+    low_frames_ = 0;
+    homing_filtered_rad_ = 0.0;
+  }
+  else
+  {
+    const bool was_on_route = have_input_ && (last_input_.status == LocalizationStatus::kTracking ||
+                                              last_input_.status == LocalizationStatus::kEndOfRoute);
+    if (std::isfinite(input.homing_angle_rad))
+    {
+      const double dt = std::max(0.0, now_s - last_input_s_);
+      if (!was_on_route)
+        homing_filtered_rad_ = input.homing_angle_rad;
+      else
+      {
+        const double tau = params_.homing_time_constant_s;
+        const double alpha = tau > 0.0 ? dt / (tau + dt) : 1.0;
+        homing_filtered_rad_ += alpha * (input.homing_angle_rad - homing_filtered_rad_);
+      }
+    }
+    // NaN counts as low confidence.
+    if (input.confidence >= params_.min_confidence)
+      low_frames_ = 0;
+    else
+      ++low_frames_;
+  }
+  last_input_ = input;
+  last_input_s_ = now_s;
+  have_input_ = true;
+  if (state_ == State::kFollowing && input.status == LocalizationStatus::kEndOfRoute)
+    state_ = State::kFinished;
+}
+
+void RouteFollower::computeTarget(double now_s)
+{
+  target_ = FollowerCommand();
+  scale_ = 0.0;
+  switch (state_)
+  {
+    case State::kIdle:
+      reason_ = "idle: call start";
+      return;
+    case State::kPaused:
+      reason_ = "paused: call start to resume";
+      return;
+    case State::kStopped:
+      reason_ = "stopped by the stop service: call start";
+      return;
+    case State::kFinished:
+      reason_ = "finished: the end of the route (keyframe " + std::to_string(last_input_.keyframe) + " of " +
+                std::to_string(motion_.size()) + ")";
+      return;
+    case State::kFollowing:
+      break;
+  }
+  if (!have_input_)
+  {
+    reason_ = "stopped: waiting for the first localization";
+    return;
+  }
+  const double silence_s = now_s - last_input_s_;
+  if (silence_s > params_.watchdog_timeout_s)
+  {
+    reason_ = formatted("stopped: no localization for %.2f s (watchdog_timeout %.2f s)", silence_s,
+                        params_.watchdog_timeout_s);
+    return;
+  }
+  if (last_input_.status == LocalizationStatus::kLost)
+  {
+    reason_ = "stopped: the localization is lost";
+    return;
+  }
+  if (last_input_.status == LocalizationStatus::kInitializing)
+  {
+    reason_ = "stopped: the localization is initializing";
+    return;
+  }
+  if (last_input_.keyframe < 0 || last_input_.keyframe >= static_cast<int>(motion_.size()))
+  {
+    reason_ = "stopped: keyframe " + std::to_string(last_input_.keyframe) + " is not among the map's " +
+              std::to_string(motion_.size()) + " keyframes (localizing against another map?)";
+    return;
+  }
+  if (low_frames_ >= params_.stop_after_frames)
+  {
+    reason_ = formatted("stopped: confidence below %.2f for %.0f localizations in a row", params_.min_confidence,
+                        low_frames_);
+    return;
+  }
+  if (low_frames_ >= params_.slow_after_frames)
+  {
+    scale_ = params_.slow_factor;
+    reason_ = formatted("slowing: confidence below %.2f for %.0f localizations in a row", params_.min_confidence,
+                        low_frames_);
+  }
+  else
+  {
+    scale_ = 1.0;
+    reason_ = "following";
+  }
+  const TaughtMotion& taught = motion_[static_cast<size_t>(last_input_.keyframe)];
+  const double homing_rps = std::max(-params_.max_homing_turn_rps,
+                                     std::min(params_.max_homing_turn_rps, params_.homing_gain * homing_filtered_rad_));
+  target_.linear_mps = scale_ * params_.speed_factor * taught.linear_mps;
+  target_.angular_rps = scale_ * (params_.speed_factor * taught.angular_rps + homing_rps);
+}
+
+FollowerCommand RouteFollower::command(double now_s)
+{
+  computeTarget(now_s);
+  const double dt = have_command_time_ ? std::max(0.0, now_s - command_s_) : 0.0;
+  command_.linear_mps = approach(command_.linear_mps, target_.linear_mps, params_.max_linear_accel * dt);
+  command_.angular_rps = approach(command_.angular_rps, target_.angular_rps, params_.max_angular_accel * dt);
+  command_s_ = now_s;
+  have_command_time_ = true;
+  return command_;
+}
+
+}  // namespace along_route_localization

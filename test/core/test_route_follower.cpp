@@ -1,0 +1,288 @@
+// The route follower's controller (route_follower.h): commands, safety sequence, rate limits, end of
+// route and watchdog, fed with explicit times and checked against numbers worked out by hand.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "along_route_localization/route_follower.h"
+
+namespace arl = along_route_localization;
+
+// Sums of a few decimal fractions: equal up to rounding.
+#define EXPECT_CLOSE(expected, actual) EXPECT_NEAR(expected, actual, 1e-12)
+
+namespace
+{
+
+arl::TaughtMotion motion(double linear_mps, double angular_rps, double distance_m = 0.0)
+{
+  arl::TaughtMotion m;
+  m.linear_mps = linear_mps;
+  m.angular_rps = angular_rps;
+  m.distance_m = distance_m;
+  return m;
+}
+
+arl::FollowerInput tracking(int keyframe, double confidence, double homing_angle_rad,
+                            arl::LocalizationStatus status = arl::LocalizationStatus::kTracking)
+{
+  arl::FollowerInput input;
+  input.status = status;
+  input.keyframe = keyframe;
+  input.confidence = confidence;
+  input.homing_angle_rad = homing_angle_rad;
+  return input;
+}
+
+// No filter, no practical rate limit: the command is the target.
+arl::RouteFollowerParams immediate()
+{
+  arl::RouteFollowerParams params;
+  params.homing_time_constant_s = 0.0;
+  params.max_linear_accel = 1000.0;
+  params.max_angular_accel = 1000.0;
+  return params;
+}
+
+arl::RouteFollower started(const std::vector<arl::TaughtMotion>& taught, const arl::RouteFollowerParams& params)
+{
+  arl::RouteFollower follower(taught, params);
+  std::string message;
+  EXPECT_TRUE(follower.start(0.0, &message)) << message;
+  return follower;
+}
+
+}  // namespace
+
+TEST(RouteFollower, CommandIsTaughtMotionTimesSpeedFactorPlusGainTimesHoming)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.speed_factor = 0.5;
+  params.homing_gain = 2.0;
+  params.max_homing_turn_rps = 1.0;
+  arl::RouteFollower follower = started({ motion(0.2, 0.0), motion(0.8, 0.1), motion(0.2, 0.0) }, params);
+  follower.localization(tracking(1, 0.9, 0.1), 0.0);
+  const arl::FollowerCommand command = follower.command(0.1);
+  // v = 0.5 * 0.8 = 0.4; w = 0.5 * 0.1 + 2 * 0.1 = 0.25
+  EXPECT_CLOSE(0.4, command.linear_mps);
+  EXPECT_CLOSE(0.25, command.angular_rps);
+  EXPECT_EQ("following", follower.reason());
+}
+
+TEST(RouteFollower, HomingTermIsBoundedBothWays)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.speed_factor = 0.5;
+  params.homing_gain = 2.0;
+  params.max_homing_turn_rps = 0.3;
+  arl::RouteFollower follower = started({ motion(0.8, 0.1) }, params);
+  follower.localization(tracking(0, 0.9, 0.5), 0.0);
+  EXPECT_CLOSE(0.05 + 0.3, follower.command(0.1).angular_rps);  // 2 * 0.5 = 1.0, bounded to 0.3
+  follower.localization(tracking(0, 0.9, -0.5), 0.2);
+  EXPECT_CLOSE(0.05 - 0.3, follower.command(0.3).angular_rps);
+}
+
+TEST(RouteFollower, HomingAngleIsLowPassed)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.homing_time_constant_s = 0.3;
+  params.homing_gain = 1.0;
+  arl::RouteFollower follower = started({ motion(1.0, 0.0) }, params);
+  follower.localization(tracking(0, 0.9, 0.0), 0.0);  // the first one is taken as it is
+  EXPECT_CLOSE(0.0, follower.filteredHomingAngle());
+  follower.localization(tracking(0, 0.9, 0.4), 0.1);  // alpha = 0.1 / (0.3 + 0.1) = 0.25: 0.1
+  EXPECT_CLOSE(0.1, follower.filteredHomingAngle());
+  follower.localization(tracking(0, 0.9, 0.4), 0.2);  // 0.1 + 0.25 * 0.3 = 0.175
+  EXPECT_CLOSE(0.175, follower.filteredHomingAngle());
+  EXPECT_CLOSE(0.175, follower.command(0.25).angular_rps);
+  // A NaN angle leaves the filter as it was.
+  follower.localization(tracking(0, 0.9, std::nan("")), 0.3);
+  EXPECT_CLOSE(0.175, follower.filteredHomingAngle());
+}
+
+TEST(RouteFollower, SlowsThenStopsWhileConfidenceStaysLowAndResumesWhenItRecovers)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.min_confidence = 0.5;
+  params.slow_after_frames = 2;
+  params.stop_after_frames = 4;
+  params.slow_factor = 0.5;
+  arl::RouteFollower follower = started({ motion(1.0, 0.2) }, params);
+  const double confidences[] = { 0.9, 0.1, 0.1, 0.1, 0.1, 0.1, 0.9 };
+  // low count:                   0    1    2    3    4    5    0
+  const double expected_linear[] = { 1.0, 1.0, 0.5, 0.5, 0.0, 0.0, 1.0 };
+  double t = 0.0;
+  for (int i = 0; i < 7; ++i, t += 0.1)
+  {
+    follower.localization(tracking(0, confidences[i], 0.0), t);
+    const arl::FollowerCommand command = follower.command(t + 0.05);
+    EXPECT_CLOSE(expected_linear[i], command.linear_mps) << "localization " << i;
+    EXPECT_CLOSE(0.2 * expected_linear[i], command.angular_rps) << "localization " << i;
+  }
+  follower.localization(tracking(0, 0.1, 0.0), t);
+  follower.localization(tracking(0, 0.1, 0.0), t + 0.1);
+  follower.command(t + 0.15);
+  EXPECT_EQ(0.5, follower.safetyScale());
+  EXPECT_NE(std::string::npos, follower.reason().find("slowing")) << follower.reason();
+  follower.localization(tracking(0, 0.1, 0.0), t + 0.2);
+  follower.localization(tracking(0, 0.1, 0.0), t + 0.3);
+  follower.command(t + 0.35);
+  EXPECT_EQ(0.0, follower.safetyScale());
+  EXPECT_NE(std::string::npos, follower.reason().find("confidence below 0.50 for 4")) << follower.reason();
+}
+
+TEST(RouteFollower, AKeyframeJumpRampsTheCommandAtTheAccelerationLimits)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.max_linear_accel = 0.5;
+  params.max_angular_accel = 1.0;
+  params.homing_gain = 0.0;
+  std::vector<arl::TaughtMotion> taught(11, motion(0.2, 0.0));
+  taught[10] = motion(1.0, 0.5);
+  arl::RouteFollower follower = started(taught, params);
+  follower.localization(tracking(0, 0.9, 0.0), 0.0);
+  EXPECT_CLOSE(0.0, follower.command(0.0).linear_mps);  // started at 0: no time to accelerate
+  EXPECT_CLOSE(0.2, follower.command(1.0).linear_mps);  // 0.5 m/s^2 x 1 s allows 0.5; target 0.2
+  follower.localization(tracking(10, 0.9, 0.0), 1.0);
+  arl::FollowerCommand command = follower.command(1.2);  // +0.1 m/s, +0.2 rad/s in 0.2 s
+  EXPECT_CLOSE(0.3, command.linear_mps);
+  EXPECT_CLOSE(0.2, command.angular_rps);
+  command = follower.command(1.4);
+  EXPECT_CLOSE(0.4, command.linear_mps);
+  EXPECT_CLOSE(0.4, command.angular_rps);
+  command = follower.command(1.6);
+  EXPECT_CLOSE(0.5, command.linear_mps);
+  EXPECT_CLOSE(0.5, command.angular_rps);  // reached
+  EXPECT_CLOSE(1.0, follower.target().linear_mps);
+  // And back: the jump to keyframe 0 brings the speed down at 0.5 m/s^2 too.
+  follower.localization(tracking(0, 0.9, 0.0), 1.6);
+  command = follower.command(2.0);
+  EXPECT_CLOSE(0.3, command.linear_mps);
+  EXPECT_CLOSE(0.1, command.angular_rps);
+}
+
+TEST(RouteFollower, StopsAtTheEndOfTheRouteUntilStartedAgain)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.max_linear_accel = 1.0;
+  arl::RouteFollower follower = started({ motion(0.5, 0.0), motion(0.5, 0.0), motion(0.5, 0.0) }, params);
+  follower.localization(tracking(1, 0.9, 0.0), 0.0);
+  EXPECT_CLOSE(0.5, follower.command(1.0).linear_mps);
+  follower.localization(tracking(2, 0.9, 0.0, arl::LocalizationStatus::kEndOfRoute), 1.0);
+  EXPECT_EQ(arl::RouteFollower::State::kFinished, follower.state());
+  EXPECT_CLOSE(0.3, follower.command(1.2).linear_mps);  // ramps down at 1 m/s^2
+  EXPECT_TRUE(follower.driving());
+  EXPECT_NE(std::string::npos, follower.reason().find("end of the route")) << follower.reason();
+  EXPECT_CLOSE(0.0, follower.command(1.6).linear_mps);
+  EXPECT_FALSE(follower.driving());
+  // Later localizations on the route do not drive again by themselves.
+  follower.localization(tracking(1, 0.9, 0.0), 1.7);
+  EXPECT_CLOSE(0.0, follower.command(1.8).linear_mps);
+  std::string message;
+  EXPECT_TRUE(follower.start(1.8, &message)) << message;
+  EXPECT_CLOSE(0.1, follower.command(1.9).linear_mps);
+}
+
+TEST(RouteFollower, WatchdogStopsWhenLocalizationsStopComing)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.watchdog_timeout_s = 0.5;
+  params.max_linear_accel = 2.0;
+  arl::RouteFollower follower = started({ motion(0.6, 0.0) }, params);
+  follower.localization(tracking(0, 0.9, 0.0), 10.0);
+  EXPECT_CLOSE(0.6, follower.command(10.5).linear_mps);  // 0.5 s silence: not more than the timeout
+  EXPECT_CLOSE(0.4, follower.command(10.6).linear_mps);  // 0.6 s: stop, at 2 m/s^2
+  EXPECT_NE(std::string::npos, follower.reason().find("no localization for 0.60 s")) << follower.reason();
+  EXPECT_CLOSE(0.0, follower.command(10.9).linear_mps);
+  EXPECT_EQ(arl::RouteFollower::State::kFollowing, follower.state());  // still following: resumes by itself
+  follower.localization(tracking(0, 0.9, 0.0), 11.0);
+  EXPECT_CLOSE(0.4, follower.command(11.1).linear_mps);  // 0.2 s since the last command at 2 m/s^2
+}
+
+TEST(RouteFollower, StopsWhileLostOrInitializingOrOnAKeyframeOutsideTheMap)
+{
+  arl::RouteFollower follower = started({ motion(0.6, 0.1), motion(0.6, 0.1) }, immediate());
+  follower.localization(tracking(1, 0.9, 0.2, arl::LocalizationStatus::kLost), 0.0);
+  EXPECT_CLOSE(0.0, follower.command(0.1).linear_mps);
+  EXPECT_CLOSE(0.0, follower.command(0.1).angular_rps);
+  EXPECT_NE(std::string::npos, follower.reason().find("lost")) << follower.reason();
+  follower.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kInitializing), 0.2);
+  EXPECT_CLOSE(0.0, follower.command(0.3).linear_mps);
+  EXPECT_NE(std::string::npos, follower.reason().find("initializing")) << follower.reason();
+  follower.localization(tracking(7, 0.9, 0.0), 0.4);
+  EXPECT_CLOSE(0.0, follower.command(0.5).linear_mps);
+  EXPECT_NE(std::string::npos, follower.reason().find("keyframe 7 is not among the map's 2")) << follower.reason();
+  follower.localization(tracking(1, 0.9, 0.0), 0.6);
+  EXPECT_CLOSE(0.6, follower.command(0.7).linear_mps);
+}
+
+TEST(RouteFollower, ServicesStartPauseStop)
+{
+  arl::RouteFollower follower({ motion(0.5, 0.0) }, immediate());
+  std::string message;
+  follower.localization(tracking(0, 0.9, 0.0), 0.0);
+  EXPECT_EQ(arl::RouteFollower::State::kIdle, follower.state());
+  EXPECT_CLOSE(0.0, follower.command(0.1).linear_mps);  // idle: never drives
+  EXPECT_FALSE(follower.driving());
+  EXPECT_FALSE(follower.pause(&message));
+  EXPECT_FALSE(follower.stop(&message));
+  EXPECT_TRUE(follower.start(0.1, &message));
+  EXPECT_EQ("started following", message);
+  EXPECT_FALSE(follower.start(0.1, &message));
+  EXPECT_CLOSE(0.5, follower.command(0.2).linear_mps);
+  EXPECT_TRUE(follower.pause(&message));
+  EXPECT_EQ(arl::RouteFollower::State::kPaused, follower.state());
+  EXPECT_CLOSE(0.0, follower.command(0.3).linear_mps);
+  EXPECT_TRUE(follower.start(0.3, &message));
+  EXPECT_EQ("resumed following", message);
+  follower.localization(tracking(0, 0.9, 0.0), 0.3);
+  EXPECT_CLOSE(0.5, follower.command(0.4).linear_mps);
+  EXPECT_TRUE(follower.stop(&message));
+  EXPECT_EQ(arl::RouteFollower::State::kStopped, follower.state());
+  EXPECT_CLOSE(0.0, follower.command(0.5).linear_mps);
+  EXPECT_FALSE(follower.stop(&message));
+  EXPECT_TRUE(follower.start(0.5, &message));
+}
+
+TEST(RouteFollower, RefusesAMapWithoutMotionAndInvalidParameters)
+{
+  EXPECT_THROW(arl::RouteFollower{ std::vector<arl::TaughtMotion>() }, std::invalid_argument);
+  arl::RouteFollowerParams params;
+  params.stop_after_frames = 1;
+  params.slow_after_frames = 2;
+  EXPECT_NE(std::string::npos, params.validate().find("stop_after_frames")) << params.validate();
+  EXPECT_THROW((arl::RouteFollower{ { motion(1.0, 0.0) }, params }), std::invalid_argument);
+  arl::RouteFollower follower({ motion(1.0, 0.0) });
+  arl::RouteFollowerParams negative;
+  negative.max_linear_accel = 0.0;
+  EXPECT_THROW(follower.setParams(negative), std::invalid_argument);
+  EXPECT_CLOSE(0.5, follower.params().max_linear_accel);  // the old ones stay
+  EXPECT_EQ("", arl::RouteFollowerParams().validate());
+}
+
+TEST(TaughtMotion, KeyframesWithoutARecordTakeTheNearestRecordedOne)
+{
+  std::map<int, arl::TaughtMotion> recorded;
+  recorded[2] = motion(0.1, 0.0);
+  recorded[5] = motion(0.5, 0.0);
+  const std::vector<arl::TaughtMotion> full = arl::completeTaughtMotion(recorded, 8);
+  ASSERT_EQ(8u, full.size());
+  const double expected[] = { 0.1, 0.1, 0.1, 0.1, 0.5, 0.5, 0.5, 0.5 };  // 3: 1 from 2, 2 from 5; 4: the other way
+  for (int k = 0; k < 8; ++k)
+    EXPECT_CLOSE(expected[k], full[k].linear_mps) << "keyframe " << k;
+
+  std::map<int, arl::TaughtMotion> tie;
+  tie[0] = motion(0.1, 0.0);
+  tie[2] = motion(0.3, 0.0);
+  EXPECT_CLOSE(0.1, arl::completeTaughtMotion(tie, 3)[1].linear_mps);  // the earlier one on a tie
+
+  std::map<int, arl::TaughtMotion> beyond;
+  beyond[5] = motion(0.5, 0.0);
+  EXPECT_TRUE(arl::completeTaughtMotion(beyond, 3).empty());
+  EXPECT_TRUE(arl::completeTaughtMotion(std::map<int, arl::TaughtMotion>(), 3).empty());
+  EXPECT_TRUE(arl::completeTaughtMotion(recorded, 0).empty());
+}

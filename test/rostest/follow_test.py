@@ -1,0 +1,240 @@
+#!/usr/bin/python3
+"""Follow: teach.launch records the taught motion from cmd_vel into the map; follow.launch's route_follower
+drives from Localization messages (published here) with it: the command worked out by hand, the watchdog,
+stop on lost, slow then stop on low confidence, stop at the end of the route, the services,
+dynamic_reconfigure, and a map without taught motion refused with a clear error."""
+
+import os
+import shutil
+import tempfile
+import threading
+import unittest
+
+import rosbag
+import rospy
+import rostest
+from diagnostic_msgs.msg import DiagnosticStatus
+from dynamic_reconfigure.client import Client as ReconfigureClient
+from geometry_msgs.msg import Twist
+from nodelet.srv import NodeletLoad, NodeletUnload
+from sensor_msgs.msg import Image
+from std_srvs.srv import Trigger
+
+from along_route_localization.msg import KeyframeMotion, Localization
+import route_fixture as fx
+
+FRAMES = 40
+TAUGHT_LINEAR, TAUGHT_ANGULAR = 0.5, 0.125   # the cmd_vel published during the teach (exact in binary)
+FOLLOWER = '/follow/route_follower'
+MANAGER = '/follow/repeat_manager'
+DIAGNOSTIC = 'follow/route_follower: following'
+EPS = 1e-6
+
+
+class Repeater(object):
+    """Publishes a message at a fixed rate from a thread while one is set."""
+
+    def __init__(self, topic, msg_type, rate_hz):
+        self.publisher = rospy.Publisher(topic, msg_type, queue_size=10)
+        self.lock = threading.Lock()
+        self.message = None
+        self.rate_hz = rate_hz
+        self.thread = threading.Thread(target=self._run)
+        self.thread.daemon = True
+        self.thread.start()
+
+    def set(self, message):
+        with self.lock:
+            self.message = message
+
+    def _run(self):
+        rate = rospy.Rate(self.rate_hz)
+        while not rospy.is_shutdown():
+            with self.lock:
+                message = self.message
+            if message is not None:
+                if hasattr(message, 'header'):
+                    message.header.stamp = rospy.Time.now()
+                self.publisher.publish(message)
+            rate.sleep()
+
+
+def localization(status=Localization.STATUS_TRACKING, keyframe=10, confidence=0.9, homing_angle=0.1):
+    msg = Localization()
+    msg.status, msg.keyframe, msg.confidence, msg.homing_angle = status, keyframe, confidence, homing_angle
+    msg.query_informative = True
+    return msg
+
+
+class FollowTest(unittest.TestCase):
+
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('follow_test')
+        cls.tmp = tempfile.mkdtemp(prefix='along_route_follow_test_')
+        fx.generate_route(cls.tmp, frames=FRAMES)
+        cls.map_path = rospy.get_param('~map')
+        cls.diagnostics = fx.DiagnosticsCollector()
+        cls.commands = fx.Collector('/follow/cmd_vel', Twist, queue_size=10000)
+        cls.localizations = Repeater('/follow/localization', Localization, 10.0)
+
+        # Before the map exists the follower cannot drive, and says why.
+        fx.wait_for_service(FOLLOWER + '/start')
+        cls.start_without_map = rospy.ServiceProxy(FOLLOWER + '/start', Trigger)()
+
+        # Teach while the robot's cmd_vel is published; once the recorder has heard it, every keyframe
+        # gets the taught motion.
+        cmd_vel = Twist()
+        cmd_vel.linear.x, cmd_vel.angular.z = TAUGHT_LINEAR, TAUGHT_ANGULAR
+        cls.teach_cmd_vel = Repeater('/teach/cmd_vel', Twist, 20.0)
+        cls.teach_cmd_vel.set(cmd_vel)
+        fx.wait_for_service('/teach/map_recorder/finish')
+        cls.diagnostics.next_status('teach/map_recorder: recording',
+                                    lambda s: int(fx.status_values(s)['motion messages']) > 0,
+                                    'the recorder to hear cmd_vel', timeout=30)
+        preprocessed = fx.Collector('/teach/image_preprocessed', Image)
+        fx.play(os.path.join(cls.tmp, 'teach.bag'), {fx.CAMERA_TOPIC: '/teach_camera/image_raw'})
+        fx.wait_for(lambda: preprocessed.count() >= FRAMES, 60, 'the teach drive to be preprocessed')
+        cls.finish = rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)()
+        cls.teach_cmd_vel.set(None)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.localizations.set(None)
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+        fx.remove(cls.map_path)
+
+    def call(self, service):
+        return rospy.ServiceProxy(FOLLOWER + '/' + service, Trigger)()
+
+    def wait_for_command(self, linear, angular, what, timeout=10.0):
+        """Until the newest cmd_vel is (linear, angular)."""
+        def reached():
+            latest = self.commands.snapshot()[-1:]
+            return bool(latest) and abs(latest[0].linear.x - linear) < EPS and abs(latest[0].angular.z - angular) < EPS
+        fx.wait_for(reached, timeout, '%s: cmd_vel (%g, %g)' % (what, linear, angular))
+
+    def status(self, predicate, what):
+        return self.diagnostics.next_status(DIAGNOSTIC, predicate, what)
+
+    def drive(self, what):
+        """Tracking at keyframe 10 with a homing angle of 0.1 rad: v = 1.0 x 0.5 = 0.5 m/s,
+        w = 1.0 x 0.125 + 1.0 x 0.1 = 0.225 rad/s (gain 1, speed factor 1, no filter)."""
+        self.localizations.set(localization())
+        self.wait_for_command(TAUGHT_LINEAR, TAUGHT_ANGULAR + 0.1, what)
+
+    def test_a_teach_records_one_motion_message_per_keyframe(self):
+        self.assertTrue(self.finish.success, self.finish.message)
+        with rosbag.Bag(self.map_path) as bag:
+            keyframes = [m for _, m, _ in bag.read_messages(topics=['keyframes'])]
+            motion = [m for _, m, _ in bag.read_messages(topics=['motion'])]
+            self.assertEqual(bag.get_type_and_topic_info().topics['motion'].msg_type,
+                             'along_route_localization/KeyframeMotion')
+        self.assertEqual(len(keyframes), FRAMES)
+        self.assertEqual([m.keyframe for m in motion], list(range(FRAMES)))
+        self.assertEqual([m.header.stamp for m in motion], [k.header.stamp for k in keyframes])
+        for m in motion:
+            self.assertEqual((m.linear_mps, m.angular_rps), (TAUGHT_LINEAR, TAUGHT_ANGULAR))
+        # Distance since the previous keyframe: none before the first; the robot moved during the teach.
+        self.assertEqual(motion[0].distance_m, 0.0)
+        self.assertTrue(all(m.distance_m >= 0.0 for m in motion), [m.distance_m for m in motion])
+        self.assertGreater(sum(m.distance_m for m in motion), 0.0)
+
+    def test_b_follower_drives_stops_and_answers_its_services(self):
+        self.assertFalse(self.start_without_map.success)
+        self.assertIn('does not exist', self.start_without_map.message)
+
+        # Not started (and no map read yet): localizations arrive, nothing is commanded.
+        self.localizations.set(localization())
+        idle = self.status(lambda s: int(fx.status_values(s)['localizations received']) > 0, 'localizations')
+        self.assertEqual(fx.status_values(idle)['state'], 'no map')
+        self.assertEqual(idle.level, DiagnosticStatus.ERROR)
+        self.assertIn('will not drive: ', idle.message)
+        self.assertEqual(fx.status_values(idle)['commands published'], '0')
+        self.assertEqual(self.commands.count(), 0)
+
+        # ~start reads the map taught since the follower started.
+        started = self.call('start')
+        self.assertTrue(started.success, started.message)
+        self.assertEqual(started.message, 'started following')
+        self.drive('following')
+
+        # dynamic_reconfigure: half the speed, and half the taught turn rate: w = 0.5 x 0.125 + 0.1.
+        reconfigure = ReconfigureClient(FOLLOWER, timeout=30)
+        reconfigure.update_configuration({'speed_factor': 0.5})
+        self.wait_for_command(0.5 * TAUGHT_LINEAR, 0.5 * TAUGHT_ANGULAR + 0.1, 'speed_factor 0.5')
+        reconfigure.update_configuration({'speed_factor': 1.0})
+        self.drive('speed_factor 1 again')
+
+        # Watchdog: localizations stop coming, the robot stops; they come again, it drives again.
+        self.localizations.set(None)
+        self.wait_for_command(0.0, 0.0, 'watchdog')
+        stopped = self.status(lambda s: 'no localization' in s.message, 'the watchdog in the diagnostics')
+        self.assertEqual(fx.status_values(stopped)['state'], 'following')
+        self.drive('localizations again')
+
+        # Lost: stop; the track found again: drive.
+        self.localizations.set(localization(status=Localization.STATUS_LOST, keyframe=-1, confidence=0.0))
+        self.wait_for_command(0.0, 0.0, 'lost')
+        self.status(lambda s: s.message == 'stopped: the localization is lost', 'lost in the diagnostics')
+        self.drive('tracking again')
+
+        # Low confidence (below 0.2): half the speed after 3 localizations, stopped after 8.
+        first = self.commands.count()
+        self.localizations.set(localization(confidence=0.05))
+        self.wait_for_command(0.0, 0.0, 'low confidence')
+        linear = [m.linear.x for m in self.commands.snapshot()[first:]]
+        self.assertTrue(any(abs(v - 0.5 * TAUGHT_LINEAR) < EPS for v in linear), linear)
+        self.drive('confident again')
+
+        # ~pause, ~start resumes; ~stop, ~start again.
+        paused = self.call('pause')
+        self.assertTrue(paused.success, paused.message)
+        self.wait_for_command(0.0, 0.0, 'paused')
+        resumed = self.call('start')
+        self.assertEqual((resumed.success, resumed.message), (True, 'resumed following'))
+        self.drive('resumed')
+        stop = self.call('stop')
+        self.assertTrue(stop.success, stop.message)
+        self.wait_for_command(0.0, 0.0, 'stopped')
+        self.assertFalse(self.call('stop').success)
+        self.assertTrue(self.call('start').success)
+        self.drive('started again')
+
+        # End of the route: stop, and stay stopped while localizations on the route keep coming.
+        self.localizations.set(localization(status=Localization.STATUS_END_OF_ROUTE, keyframe=FRAMES - 1))
+        self.wait_for_command(0.0, 0.0, 'end of route')
+        finished = self.status(lambda s: fx.status_values(s)['state'] == 'finished', 'finished in the diagnostics')
+        self.assertEqual(finished.level, DiagnosticStatus.OK)
+        self.assertIn('the end of the route (keyframe %d of %d)' % (FRAMES - 1, FRAMES), finished.message)
+        self.localizations.set(localization())
+        count = int(fx.status_values(finished)['localizations received'])
+        later = self.status(lambda s: int(fx.status_values(s)['localizations received']) >= count + 5,
+                            'five more localizations')
+        self.assertEqual(fx.status_values(later)['state'], 'finished')
+        self.assertEqual(fx.status_values(later)['linear command (m/s)'], '0.000')
+        self.localizations.set(None)
+
+    def test_c_a_map_without_taught_motion_is_refused(self):
+        old_map = os.path.join(self.tmp, 'without_motion.bag')
+        with rosbag.Bag(self.map_path) as source, rosbag.Bag(old_map, 'w') as target:
+            for topic, msg, t in source.read_messages(raw=True):
+                if topic != 'motion':
+                    target.write(topic, msg, t, raw=True)
+        name = '/follow/old_map_follower'
+        rospy.set_param(name + '/map', old_map)
+        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
+            name, 'along_route_localization/route_follower', [], [], [], '')
+        self.assertTrue(loaded.success)
+        try:
+            fx.wait_for_service(name + '/start', timeout=30)
+            refused = rospy.ServiceProxy(name + '/start', Trigger)()
+            self.assertFalse(refused.success)
+            self.assertIn('holds no taught motion', refused.message)
+            self.assertIn('motion:=', refused.message)
+        finally:
+            rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
+
+
+if __name__ == '__main__':
+    rostest.rosrun('along_route_localization', 'follow', FollowTest)
