@@ -156,6 +156,7 @@ class FiguresTest(unittest.TestCase):
         self.assertEqual(closed_loop.parse_offset("1:10"), (1.0, 10.0))
         self.assertEqual(closed_loop.parse_offset("-0.5:-5"), (-0.5, -5.0))
         self.assertEqual(closed_loop.offset_name((1.0, 10.0)), "+1m+10deg")
+        self.assertEqual(closed_loop.parse_args(["--offsets=-1:-10,1:-10"]).offsets, [(-1.0, -10.0), (1.0, -10.0)])
         with self.assertRaises(Exception):
             closed_loop.parse_offset("1")
 
