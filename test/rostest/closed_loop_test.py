@@ -58,10 +58,11 @@ class ClosedLoopTest(unittest.TestCase):
         self.assertGreater(self.closed["distance_m"], ROUTE_LENGTH_M - 1.5)
 
     def test_closed_loop_comes_back_onto_the_route(self):
-        # from 1 m off: within 0.3 m (and staying there for 10 m) within the first 25 m
+        # from 1 m off: within 0.3 m (and staying there for 10 m) within the first 25 m. Measured: after
+        # 18.9 m, 0.119 m median after (homing_gain 3; 17.3 m and 0.071 m with gain 1)
         self.assertIsNotNone(self.closed["converged_after_m"], self.closed)
         self.assertLess(self.closed["converged_after_m"], 25.0, self.closed)
-        self.assertLess(self.closed["median_after_convergence_m"], 0.15, self.closed)
+        self.assertLess(self.closed["median_after_convergence_m"], 0.2, self.closed)
         self.assertLess(self.closed["max_after_convergence_m"], 0.45, self.closed)
 
     def test_open_loop_drifts_off(self):
