@@ -207,7 +207,10 @@ SAN := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-po
 # Debian puts some ROS headers in their own folders (what catkin adds with find_package).
 ROS_INCLUDES := $(addprefix -I,$(wildcard /usr/include/pluginlib /usr/include/class_loader /usr/include/xmlrpcpp \
   /usr/include/ament_index_cpp /usr/include/rcpputils /usr/include/rcutils $(ROS_PREFIX)/include))
-CXXFLAGS := -std=c++14 -O1 -g -Wall -Wextra $(SAN) -fsanitize=fuzzer-no-link -I$(PKG)/include -I$(PKG)/src $(ROS_INCLUDES) \
+# GENERATED: the package's generated message headers (map_io reads and writes KeyframeMotion), from the
+# ASan workspace above.
+CXXFLAGS := -std=c++14 -O1 -g -Wall -Wextra $(SAN) -fsanitize=fuzzer-no-link -I$(PKG)/include -I$(PKG)/src \
+  -I$(GENERATED) $(ROS_INCLUDES) \
   $(shell pkg-config --cflags opencv4) -MMD -MP
 LIBS := $(if $(ROS_PREFIX),-L$(ROS_PREFIX)/lib -Wl$(,)-rpath$(,)$(ROS_PREFIX)/lib) -lrosbag -lrosbag_storage -lroscpp -lrosconsole -lroscpp_serialization -lrostime -lcpp_common \
   -lconsole_bridge -lboost_system -lopencv_imgproc -lopencv_core -pthread
@@ -228,7 +231,8 @@ fuzz_seeds: obj/fuzz_seeds.o obj/map_io.o $(CORE)
 	clang++ $(SAN) $^ -o $@ $(LIBS)
 -include $(wildcard obj/*.d)
 MAKE
-  if make -C "$fuzz" -j"$jobs" PKG="$here" ROS_PREFIX="$ros_prefix" >"$fuzz/build.log" 2>&1; then
+  if make -C "$fuzz" -j"$jobs" PKG="$here" ROS_PREFIX="$ros_prefix" GENERATED="$ws_asan/devel/include" \
+      >"$fuzz/build.log" 2>&1; then
     end "build"
     export ASAN_OPTIONS=detect_leaks=1:halt_on_error=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
     [ -f "$supp/lsan.supp" ] && export LSAN_OPTIONS="suppressions=$supp/lsan.supp"

@@ -3,7 +3,8 @@
 // the matched keyframe (the feed-forward) to a proportional turn on the homing angle (the feedback),
 // and decides when it is not safe to drive (low confidence, lost, no localization, end of the route).
 //
-// Time is an argument everywhere (seconds, any epoch, non-decreasing): nothing here reads a clock.
+// Time is an argument everywhere (seconds, any epoch): nothing here reads a clock. Time that goes back (a
+// restarted clock, a looping bag with sim time) stops the robot until the next localization.
 #ifndef ALONG_ROUTE_LOCALIZATION_ROUTE_FOLLOWER_H
 #define ALONG_ROUTE_LOCALIZATION_ROUTE_FOLLOWER_H
 
@@ -73,7 +74,10 @@ struct FollowerCommand
 ///   w = s * (speed_factor * w_taught[k] + clamp(homing_gain * h_filtered, +-max_homing_turn_rps))
 /// (k the matched keyframe, h_filtered the low-passed homing angle, s the safety scale: 1, slow_factor
 /// after slow_after_frames low-confidence localizations in a row, 0 after stop_after_frames, while lost or
-/// initializing, at the end of the route, and when localizations stopped coming), approached from the
+/// initializing, at the end of the route, and when localizations stopped coming; slow_factor, never 0 for
+/// low confidence, until the first confident localization after start() or after the track began: the
+/// localizer's confidence is low while the camera stands still, so a stop there would never end, and its
+/// loss detection stops the robot if no confident answer comes), approached from the
 /// previous command at no more than max_linear_accel / max_angular_accel: a jump of the matched keyframe or
 /// a stop never makes a jump in the command. The taught turn rate is scaled like the speed so that the
 /// path keeps the taught curvature.
@@ -111,7 +115,7 @@ public:
   /// A localization received at now_s. Its status END_OF_ROUTE finishes the route.
   void localization(const FollowerInput& input, double now_s);
 
-  /// The command to send at now_s (call at the control rate, times non-decreasing).
+  /// The command to send at now_s (call at the control rate).
   FollowerCommand command(double now_s);
 
   State state() const { return state_; }
@@ -140,6 +144,7 @@ private:
   double last_input_s_ = 0.0;
   double homing_filtered_rad_ = 0.0;
   int low_frames_ = 0;
+  bool confident_since_start_ = false;  // a confident localization since start() or since the track began
 
   FollowerCommand target_, command_;
   double scale_ = 0.0;

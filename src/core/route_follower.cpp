@@ -147,6 +147,7 @@ bool RouteFollower::start(double now_s, std::string* message)
   }
   low_frames_ = 0;
   homing_filtered_rad_ = 0.0;
+  confident_since_start_ = false;
   state_ = State::kFollowing;
   *message = before == State::kPaused ? "resumed following" : "started following";
   return true;
@@ -185,6 +186,7 @@ void RouteFollower::localization(const FollowerInput& input, double now_s)
     // Lost or initializing: the homing angle and the confidence count start afresh with the track.
     low_frames_ = 0;
     homing_filtered_rad_ = 0.0;
+    confident_since_start_ = false;
   }
   else
   {
@@ -204,7 +206,10 @@ void RouteFollower::localization(const FollowerInput& input, double now_s)
     }
     // NaN counts as low confidence.
     if (input.confidence >= params_.min_confidence)
+    {
       low_frames_ = 0;
+      confident_since_start_ = true;
+    }
     else
       ++low_frames_;
   }
@@ -243,6 +248,11 @@ void RouteFollower::computeTarget(double now_s)
     return;
   }
   const double silence_s = now_s - last_input_s_;
+  if (silence_s < 0.0)
+  {
+    reason_ = "stopped: time went back since the last localization (a restarted clock?); waiting for the next one";
+    return;
+  }
   if (silence_s > params_.watchdog_timeout_s)
   {
     reason_ = formatted("stopped: no localization for %.2f s (watchdog_timeout %.2f s)", silence_s,
@@ -265,13 +275,20 @@ void RouteFollower::computeTarget(double now_s)
               std::to_string(motion_.size()) + " keyframes (localizing against another map?)";
     return;
   }
-  if (low_frames_ >= params_.stop_after_frames)
+  if (!confident_since_start_)
+  {
+    // A standing robot brings the localizer no new views, so its confidence stays low: stopping here would
+    // never start. Slow until the first confident answer; the localizer's loss detection stops it if none comes.
+    scale_ = params_.slow_factor;
+    reason_ = formatted("starting: slow until a localization with confidence >= %.2f", params_.min_confidence);
+  }
+  else if (low_frames_ >= params_.stop_after_frames)
   {
     reason_ = formatted("stopped: confidence below %.2f for %.0f localizations in a row", params_.min_confidence,
                         low_frames_);
     return;
   }
-  if (low_frames_ >= params_.slow_after_frames)
+  else if (low_frames_ >= params_.slow_after_frames)
   {
     scale_ = params_.slow_factor;
     reason_ = formatted("slowing: confidence below %.2f for %.0f localizations in a row", params_.min_confidence,
@@ -292,6 +309,8 @@ void RouteFollower::computeTarget(double now_s)
 FollowerCommand RouteFollower::command(double now_s)
 {
   computeTarget(now_s);
+  if (have_command_time_ && now_s < command_s_)
+    command_s_ = now_s;  // time went back: no change in this call, ramps go on from here
   const double dt = have_command_time_ ? std::max(0.0, now_s - command_s_) : 0.0;
   command_.linear_mps = approach(command_.linear_mps, target_.linear_mps, params_.max_linear_accel * dt);
   command_.angular_rps = approach(command_.angular_rps, target_.angular_rps, params_.max_angular_accel * dt);

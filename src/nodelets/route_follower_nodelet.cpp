@@ -13,6 +13,7 @@
 // Times are ROS time (sim time with /clock): a localization counts when it is received, so the watchdog
 // sees a localizer that stopped, whatever stamps its camera gave.
 #include <cmath>
+#include <map>
 #include <memory>
 #include <set>
 #include <string>
@@ -31,6 +32,7 @@
 #include "ros/diagnostics.h"
 #include "ros/map_io.h"
 #include "ros/private_parameters.h"
+#include "ros/reconfigure.h"
 
 namespace along_route_localization
 {
@@ -137,8 +139,9 @@ void RouteFollowerNodelet::loadMap(const std::string& path)
   map_error_.clear();
   try
   {
-    const RouteMap map = readMap(path);
-    std::vector<TaughtMotion> motion = completeTaughtMotion(readTaughtMotion(path), map.size());
+    std::map<int, TaughtMotion> recorded;
+    const RouteMap map = readMap(path, &recorded);
+    std::vector<TaughtMotion> motion = completeTaughtMotion(recorded, map.size());
     if (motion.empty())
       throw MapError("map file '" + path + "' holds no taught motion (topic '" + kMapMotionTopic +
                      "'): it was taught without the velocity topic; teach again with teach.launch motion:=<the "
@@ -167,18 +170,7 @@ void RouteFollowerNodelet::configCb(RouteFollowerConfig& config, uint32_t /*leve
                  config.slow_after_frames, config.slow_after_frames);
     config.stop_after_frames = config.slow_after_frames;
   }
-  RouteFollowerParams params;
-  params.homing_gain = config.homing_gain;
-  params.max_homing_turn_rps = config.max_homing_turn_rate;
-  params.homing_time_constant_s = config.homing_time_constant;
-  params.speed_factor = config.speed_factor;
-  params.min_confidence = config.min_confidence;
-  params.slow_after_frames = config.slow_after_frames;
-  params.stop_after_frames = config.stop_after_frames;
-  params.slow_factor = config.slow_factor;
-  params.watchdog_timeout_s = config.watchdog_timeout;
-  params.max_linear_accel = config.max_linear_accel;
-  params.max_angular_accel = config.max_angular_accel;
+  const RouteFollowerParams params = toParams(config);
   const std::string invalid = params.validate();
   if (!invalid.empty())
   {

@@ -24,6 +24,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/exceptions.h>
 #include <rosbag/view.h>
+#include <ros/serialization.h>
 #include <sensor_msgs/image_encodings.h>
 #include <std_msgs/String.h>
 
@@ -239,8 +240,12 @@ struct Connection
 class MapContents
 {
 public:
-  /// file_bytes: the map file's size, an upper bound of the keyframe bytes it holds.
-  MapContents(const std::string& path, uint64_t file_bytes) : path_(path), file_bytes_(file_bytes) {}
+  /// file_bytes: the map file's size, an upper bound of the keyframe bytes it holds. motion: where the
+  /// taught motion goes (null: not read).
+  MapContents(const std::string& path, uint64_t file_bytes, std::map<int, TaughtMotion>* motion)
+    : path_(path), file_bytes_(file_bytes), motion_(motion)
+  {
+  }
 
   void connection(const Record& record)
   {
@@ -267,6 +272,13 @@ public:
         throw MapError("map file " + inQuotes(path_) + ": topic '" + kMapKeyframesTopic + "' has type " + c.type +
                        ", expected sensor_msgs/Image");
       keyframe(cursor);
+    }
+    else if (c.topic == kMapMotionTopic && motion_)
+    {
+      if (c.type != "along_route_localization/KeyframeMotion")
+        throw MapError("map file " + inQuotes(path_) + ": topic '" + kMapMotionTopic + "' has type " + c.type +
+                       ", expected along_route_localization/KeyframeMotion");
+      taughtMotion(record.data);
     }
     else if (c.topic == kMapPreprocessingTopic || c.topic == kMapInfoTopic)
     {
@@ -331,6 +343,29 @@ private:
     early_keyframes_.clear();
   }
 
+  void taughtMotion(const std::string& bytes)
+  {
+    KeyframeMotion recorded;
+    try
+    {
+      ros::serialization::IStream stream(reinterpret_cast<uint8_t*>(const_cast<char*>(bytes.data())),
+                                         static_cast<uint32_t>(bytes.size()));
+      ros::serialization::deserialize(stream, recorded);
+    }
+    catch (const ros::Exception& e)
+    {
+      throw CorruptMap(std::string("a taught motion message is cut short: ") + e.what());
+    }
+    if (!std::isfinite(recorded.linear_mps) || !std::isfinite(recorded.angular_rps) ||
+        !std::isfinite(recorded.distance_m))
+      throw MapError("map file " + inQuotes(path_) + ": the taught motion of keyframe " +
+                     std::to_string(recorded.keyframe) + " is not finite");
+    TaughtMotion& taught = (*motion_)[static_cast<int>(std::min<uint32_t>(recorded.keyframe, 1u << 30))];
+    taught.linear_mps = recorded.linear_mps;
+    taught.angular_rps = recorded.angular_rps;
+    taught.distance_m = recorded.distance_m;
+  }
+
   void keyframe(Cursor& cursor)
   {
     Keyframe keyframe;
@@ -372,6 +407,7 @@ private:
 
   std::string path_;
   uint64_t file_bytes_;
+  std::map<int, TaughtMotion>* motion_;
   std::map<uint32_t, Connection> connections_;
   std::unique_ptr<PreprocessingParams> params_;
   std::string params_text_;
@@ -482,15 +518,17 @@ BagFileHead bagFileHead(const std::string& path)
   return magic.compare(0, head.size(), head) == 0 ? BagFileHead::kCutInHeader : BagFileHead::kNotABag;
 }
 
-RouteMap readMap(const std::string& path)
+RouteMap readMap(const std::string& path, std::map<int, TaughtMotion>* motion)
 {
+  if (motion)
+    motion->clear();
   checkMapFile(path);
   std::ifstream file(path, std::ios::binary);
   file.seekg(0, std::ios::end);
   const uint64_t size = static_cast<uint64_t>(file.tellg());
   file.seekg(13);  // past "#ROSBAG V2.0\n", checked above
   RecordScanner scanner(file, size);
-  MapContents contents(path, size);
+  MapContents contents(path, size, motion);
   try
   {
     Record record;
@@ -575,29 +613,7 @@ sensor_msgs::ImagePtr keyframeMessage(const cv::Mat& preprocessed, int64_t stamp
 std::map<int, TaughtMotion> readTaughtMotion(const std::string& path)
 {
   std::map<int, TaughtMotion> motion;
-  try
-  {
-    rosbag::Bag bag(path, rosbag::bagmode::Read);
-    for (const rosbag::MessageInstance& message : rosbag::View(bag, rosbag::TopicQuery(kMapMotionTopic)))
-    {
-      const KeyframeMotionConstPtr recorded = message.instantiate<KeyframeMotion>();
-      if (!recorded)
-        throw MapError("map file " + inQuotes(path) + ": topic '" + kMapMotionTopic + "' has type " +
-                       message.getDataType() + ", expected along_route_localization/KeyframeMotion");
-      if (!std::isfinite(recorded->linear_mps) || !std::isfinite(recorded->angular_rps) ||
-          !std::isfinite(recorded->distance_m))
-        throw MapError("map file " + inQuotes(path) + ": the taught motion of keyframe " +
-                       std::to_string(recorded->keyframe) + " is not finite");
-      TaughtMotion& taught = motion[static_cast<int>(std::min<uint32_t>(recorded->keyframe, 1u << 30))];
-      taught.linear_mps = recorded->linear_mps;
-      taught.angular_rps = recorded->angular_rps;
-      taught.distance_m = recorded->distance_m;
-    }
-  }
-  catch (const rosbag::BagException& e)
-  {
-    throw MapError("map file " + inQuotes(path) + ": cannot read its taught motion: " + e.what());
-  }
+  readMap(path, &motion);
   return motion;
 }
 

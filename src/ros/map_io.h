@@ -60,11 +60,12 @@ BagFileHead bagFileHead(const std::string& path);
 /// Reads a map file. Throws MapError with a sentence naming the file and what is wrong: missing,
 /// empty, not a bag, truncated or corrupt (with the `rosbag reindex` hint for an interrupted write),
 /// no or unparsable preprocessing parameters, no keyframes, keyframes of another encoding or size
-/// than the parameters say.
-RouteMap readMap(const std::string& path);
+/// than the parameters say. With `motion`, also the taught motion (topic "motion") by keyframe index
+/// (empty for a map recorded without it; MapError when the topic has another type or a value is not finite).
+RouteMap readMap(const std::string& path, std::map<int, TaughtMotion>* motion = nullptr);
 
-/// The taught motion a map file holds (topic "motion"), by keyframe index; empty for a map recorded
-/// without it. Throws MapError when the file cannot be read as a bag or the topic has another type.
+/// The taught motion a map file holds (readMap with `motion`), by keyframe index; empty for a map recorded
+/// without it. Throws MapError as readMap does.
 std::map<int, TaughtMotion> readTaughtMotion(const std::string& path);
 
 /// Writes a whole map at once (through MapWriter). Throws MapError.

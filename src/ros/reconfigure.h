@@ -7,8 +7,10 @@
 
 #include "along_route_localization/LocalizerConfig.h"
 #include "along_route_localization/PreprocessorConfig.h"
+#include "along_route_localization/RouteFollowerConfig.h"
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/preprocessing.h"
+#include "along_route_localization/route_follower.h"
 
 namespace along_route_localization
 {
@@ -21,6 +23,10 @@ PreprocessingParams toParams(const PreprocessorConfig& config, std::string* prob
 /// horizontal_fov_deg becomes horizontal_fov_rad; an unknown method name becomes dtw and, when `problem`
 /// is given, is named there.
 LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams base, std::string* problem = nullptr);
+
+/// Every field of RouteFollowerParams comes from the config (max_homing_turn_rate -> max_homing_turn_rps,
+/// homing_time_constant -> homing_time_constant_s, watchdog_timeout -> watchdog_timeout_s).
+RouteFollowerParams toParams(const RouteFollowerConfig& config);
 
 }  // namespace along_route_localization
 

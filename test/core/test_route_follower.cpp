@@ -135,6 +135,47 @@ TEST(RouteFollower, SlowsThenStopsWhileConfidenceStaysLowAndResumesWhenItRecover
   EXPECT_NE(std::string::npos, follower.reason().find("confidence below 0.50 for 4")) << follower.reason();
 }
 
+TEST(RouteFollower, StartsSlowUntilTheFirstConfidentLocalizationSinceStartOrTrackBegan)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.min_confidence = 0.5;
+  params.slow_after_frames = 2;
+  params.stop_after_frames = 3;
+  params.slow_factor = 0.25;
+  arl::RouteFollower follower = started({ motion(0.8, 0.0) }, params);
+  double t = 0.0;
+  for (int i = 0; i < 5; ++i, t += 0.1)  // more low ones than stop_after_frames: slow, not stopped
+  {
+    follower.localization(tracking(0, 0.1, 0.0), t);
+    EXPECT_CLOSE(0.2, follower.command(t + 0.05).linear_mps) << "localization " << i;  // 0.25 x 0.8
+  }
+  EXPECT_NE(std::string::npos, follower.reason().find("starting: slow")) << follower.reason();
+  follower.localization(tracking(0, 0.9, 0.0), t);
+  EXPECT_CLOSE(0.8, follower.command(t + 0.05).linear_mps);
+  const double low_linear[] = { 0.8, 0.2, 0.0 };  // now 2 low ones slow, 3 stop
+  for (int i = 0; i < 3; ++i)
+  {
+    t += 0.1;
+    follower.localization(tracking(0, 0.1, 0.0), t);
+    EXPECT_CLOSE(low_linear[i], follower.command(t + 0.05).linear_mps) << "low localization " << i;
+  }
+  // Lost, then the track again: slow until confident, as at the start.
+  follower.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), t + 0.1);
+  EXPECT_CLOSE(0.0, follower.command(t + 0.15).linear_mps);
+  follower.localization(tracking(0, 0.1, 0.0), t + 0.2);
+  EXPECT_CLOSE(0.2, follower.command(t + 0.25).linear_mps);
+  // ~start after a low-confidence stop: slow again (a standing robot would never regain confidence).
+  follower.localization(tracking(0, 0.9, 0.0), t + 0.3);
+  for (int i = 0; i < 3; ++i)
+    follower.localization(tracking(0, 0.1, 0.0), t + 0.4 + 0.1 * i);
+  EXPECT_CLOSE(0.0, follower.command(t + 0.65).linear_mps);
+  std::string message;
+  EXPECT_TRUE(follower.pause(&message));
+  EXPECT_TRUE(follower.start(t + 0.7, &message));
+  follower.localization(tracking(0, 0.1, 0.0), t + 0.7);
+  EXPECT_CLOSE(0.2, follower.command(t + 0.75).linear_mps);
+}
+
 TEST(RouteFollower, AKeyframeJumpRampsTheCommandAtTheAccelerationLimits)
 {
   arl::RouteFollowerParams params = immediate();
@@ -203,6 +244,22 @@ TEST(RouteFollower, WatchdogStopsWhenLocalizationsStopComing)
   EXPECT_CLOSE(0.4, follower.command(11.1).linear_mps);  // 0.2 s since the last command at 2 m/s^2
 }
 
+TEST(RouteFollower, TimeGoingBackStopsUntilTheNextLocalization)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.max_linear_accel = 1.0;
+  arl::RouteFollower follower = started({ motion(0.6, 0.0) }, params);
+  follower.localization(tracking(0, 0.9, 0.0), 100.0);
+  EXPECT_CLOSE(0.6, follower.command(100.5).linear_mps);
+  // The clock restarts at 1 s: the last localization is "in the future"; the ramp down starts from there.
+  EXPECT_CLOSE(0.6, follower.command(1.0).linear_mps);
+  EXPECT_NE(std::string::npos, follower.reason().find("time went back")) << follower.reason();
+  EXPECT_CLOSE(0.4, follower.command(1.2).linear_mps);
+  follower.localization(tracking(0, 0.9, 0.0), 1.3);
+  EXPECT_CLOSE(0.6, follower.command(1.4).linear_mps);  // 0.4 + 1 m/s^2 x 0.2 s
+  EXPECT_EQ("following", follower.reason());
+}
+
 TEST(RouteFollower, StopsWhileLostOrInitializingOrOnAKeyframeOutsideTheMap)
 {
   arl::RouteFollower follower = started({ motion(0.6, 0.1), motion(0.6, 0.1) }, immediate());
@@ -233,6 +290,8 @@ TEST(RouteFollower, ServicesStartPauseStop)
   EXPECT_TRUE(follower.start(0.1, &message));
   EXPECT_EQ("started following", message);
   EXPECT_FALSE(follower.start(0.1, &message));
+  EXPECT_CLOSE(0.25, follower.command(0.15).linear_mps);  // slow until a confident localization since start
+  follower.localization(tracking(0, 0.9, 0.0), 0.15);
   EXPECT_CLOSE(0.5, follower.command(0.2).linear_mps);
   EXPECT_TRUE(follower.pause(&message));
   EXPECT_EQ(arl::RouteFollower::State::kPaused, follower.state());

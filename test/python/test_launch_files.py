@@ -1,4 +1,4 @@
-"""teach.launch and repeat.launch as roslaunch reads them: the arguments it lists, the nodes it starts and
+"""teach.launch, repeat.launch and follow.launch as roslaunch reads them: the arguments it lists, the nodes it starts and
 the parameters it loads for the default arguments and for the ones users pass (no roscore needed)."""
 
 import os
@@ -70,6 +70,35 @@ class LaunchFileTest(unittest.TestCase):
                     default = roslaunch('--dump-params', path)
                     self.assertNotIn('/preprocessor/', default)
                     self.assertEqual(default, roslaunch('--dump-params', path, 'params_file:=none'))
+
+    def test_teach_names_the_motion_topic_and_its_type(self):
+        path = os.path.join(LAUNCH_DIR, 'teach.launch')
+        self.assertIn(' motion:=cmd_vel', roslaunch('--args', 'map_recorder', path))
+        self.assertIn('/map_recorder/motion_type: twist', roslaunch('--dump-params', path))
+        given = ('motion:=/robot/odom', 'motion_type:=odometry')
+        self.assertIn(' motion:=/robot/odom', roslaunch('--args', 'map_recorder', path, *given))
+        self.assertIn('/map_recorder/motion_type: odometry', roslaunch('--dump-params', path, *given))
+
+    def test_follow_adds_the_route_follower_to_the_repeat_nodelets(self):
+        path = os.path.join(LAUNCH_DIR, 'follow.launch')
+        listed = roslaunch('--ros-args', path)
+        self.assertNotIn('Required Arguments', listed)
+        for argument in ('image', 'map', 'manager', 'params_file', 'output', 'cmd_vel', 'autostart'):
+            self.assertIn('  {} (default'.format(argument), listed)
+        for extra, manager, nodes in (([], 'repeat_manager', ['/repeat_manager']),
+                                      (['manager:=camera_manager'], 'camera_manager', [])):
+            with self.subTest(args=extra):
+                self.assertEqual(sorted(roslaunch('--nodes', path, *extra).split()),
+                                 sorted(nodes + ['/preprocessor', '/localizer', '/route_follower']))
+                for loaded in ('preprocessor', 'localizer', 'route_follower'):
+                    self.assertIn(' {} '.format(manager), roslaunch('--args', loaded, path, *extra))
+        command = roslaunch('--args', 'route_follower', path, 'cmd_vel:=/robot/cmd_vel')
+        self.assertIn('along_route_localization/route_follower', command)
+        self.assertIn(' cmd_vel:=/robot/cmd_vel', command)
+        params = roslaunch('--dump-params', path, 'map:=/maps/route.bag', 'autostart:=true')
+        self.assertIn('/route_follower/map: /maps/route.bag', params)
+        self.assertIn('/localizer/map: /maps/route.bag', params)
+        self.assertIn('/route_follower/autostart: true', params)
 
 
 if __name__ == '__main__':

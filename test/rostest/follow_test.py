@@ -16,6 +16,7 @@ import rostest
 from diagnostic_msgs.msg import DiagnosticStatus
 from dynamic_reconfigure.client import Client as ReconfigureClient
 from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
 from nodelet.srv import NodeletLoad, NodeletUnload
 from sensor_msgs.msg import Image
 from std_srvs.srv import Trigger
@@ -29,6 +30,31 @@ FOLLOWER = '/follow/route_follower'
 MANAGER = '/follow/repeat_manager'
 DIAGNOSTIC = 'follow/route_follower: following'
 EPS = 1e-6
+
+
+class OdometryPublisher(object):
+    """The teach robot's odometry at 20 Hz: 0.5 m/s and 0.125 rad/s in its twist, poses 0.25 m apart
+    along x (exact in binary, so every distance the recorder sums from them is a whole multiple)."""
+
+    def __init__(self, topic):
+        self.publisher = rospy.Publisher(topic, Odometry, queue_size=100)
+        self.running = True
+        self.thread = threading.Thread(target=self._run)
+        self.thread.daemon = True
+        self.thread.start()
+
+    def _run(self):
+        rate = rospy.Rate(20.0)
+        step = 0
+        while self.running and not rospy.is_shutdown():
+            msg = Odometry()
+            msg.header.stamp = rospy.Time.now()
+            msg.pose.pose.position.x = 0.25 * step
+            msg.pose.pose.orientation.w = 1.0
+            msg.twist.twist.linear.x, msg.twist.twist.angular.z = TAUGHT_LINEAR, TAUGHT_ANGULAR
+            self.publisher.publish(msg)
+            step += 1
+            rate.sleep()
 
 
 class Repeater(object):
@@ -74,6 +100,7 @@ class FollowTest(unittest.TestCase):
         cls.tmp = tempfile.mkdtemp(prefix='along_route_follow_test_')
         fx.generate_route(cls.tmp, frames=FRAMES)
         cls.map_path = rospy.get_param('~map')
+        cls.map_odom_path = rospy.get_param('~map_odom')
         cls.diagnostics = fx.DiagnosticsCollector()
         cls.commands = fx.Collector('/follow/cmd_vel', Twist, queue_size=10000)
         cls.localizations = Repeater('/follow/localization', Localization, 10.0)
@@ -88,21 +115,25 @@ class FollowTest(unittest.TestCase):
         cmd_vel.linear.x, cmd_vel.angular.z = TAUGHT_LINEAR, TAUGHT_ANGULAR
         cls.teach_cmd_vel = Repeater('/teach/cmd_vel', Twist, 20.0)
         cls.teach_cmd_vel.set(cmd_vel)
-        fx.wait_for_service('/teach/map_recorder/finish')
-        cls.diagnostics.next_status('teach/map_recorder: recording',
-                                    lambda s: int(fx.status_values(s)['motion messages']) > 0,
-                                    'the recorder to hear cmd_vel', timeout=30)
+        cls.teach_odom = OdometryPublisher('/teach_odom/odom')
+        for ns in ('teach', 'teach_odom'):
+            fx.wait_for_service('/%s/map_recorder/finish' % ns)
+            cls.diagnostics.next_status('%s/map_recorder: recording' % ns,
+                                        lambda s: int(fx.status_values(s)['motion messages']) > 0,
+                                        '%s/map_recorder to hear the motion' % ns, timeout=30)
         preprocessed = fx.Collector('/teach/image_preprocessed', Image)
         fx.play(os.path.join(cls.tmp, 'teach.bag'), {fx.CAMERA_TOPIC: '/teach_camera/image_raw'})
         fx.wait_for(lambda: preprocessed.count() >= FRAMES, 60, 'the teach drive to be preprocessed')
         cls.finish = rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)()
+        cls.finish_odom = rospy.ServiceProxy('/teach_odom/map_recorder/finish', Trigger)()
         cls.teach_cmd_vel.set(None)
+        cls.teach_odom.running = False
 
     @classmethod
     def tearDownClass(cls):
         cls.localizations.set(None)
         shutil.rmtree(cls.tmp, ignore_errors=True)
-        fx.remove(cls.map_path)
+        fx.remove(cls.map_path, cls.map_odom_path)
 
     def call(self, service):
         return rospy.ServiceProxy(FOLLOWER + '/' + service, Trigger)()
@@ -138,6 +169,21 @@ class FollowTest(unittest.TestCase):
         # Distance since the previous keyframe: none before the first; the robot moved during the teach.
         self.assertEqual(motion[0].distance_m, 0.0)
         self.assertTrue(all(m.distance_m >= 0.0 for m in motion), [m.distance_m for m in motion])
+        self.assertGreater(sum(m.distance_m for m in motion), 0.0)
+
+    def test_a_teach_records_the_motion_from_odometry(self):
+        self.assertTrue(self.finish_odom.success, self.finish_odom.message)
+        with rosbag.Bag(self.map_odom_path) as bag:
+            keyframes = [m for _, m, _ in bag.read_messages(topics=['keyframes'])]
+            motion = [m for _, m, _ in bag.read_messages(topics=['motion'])]
+        self.assertEqual(len(keyframes), FRAMES)
+        self.assertEqual([m.keyframe for m in motion], list(range(FRAMES)))
+        for m in motion:
+            self.assertEqual((m.linear_mps, m.angular_rps), (TAUGHT_LINEAR, TAUGHT_ANGULAR))
+        # The distances come from the poses (whole multiples of their 0.25 m spacing), not from the twist.
+        self.assertEqual(motion[0].distance_m, 0.0)
+        self.assertTrue(all(m.distance_m / 0.25 == round(m.distance_m / 0.25) for m in motion),
+                        [m.distance_m for m in motion])
         self.assertGreater(sum(m.distance_m for m in motion), 0.0)
 
     def test_b_follower_drives_stops_and_answers_its_services(self):

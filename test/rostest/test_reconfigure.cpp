@@ -41,6 +41,32 @@ TEST(Reconfigure, LocalizerCfgDefaultsAreTheCoreDefaults)
   EXPECT_NEAR(core.horizontal_fov_rad, cfg.horizontal_fov_rad, 1e-6);
 }
 
+TEST(Reconfigure, RouteFollowerCfgDefaultsAreTheCoreDefaults)
+{
+  const arl::RouteFollowerParams core;
+  const arl::RouteFollowerParams cfg = arl::toParams(arl::RouteFollowerConfig::__getDefault__());
+  EXPECT_DOUBLE_EQ(core.homing_gain, cfg.homing_gain);
+  EXPECT_DOUBLE_EQ(core.max_homing_turn_rps, cfg.max_homing_turn_rps);
+  EXPECT_DOUBLE_EQ(core.homing_time_constant_s, cfg.homing_time_constant_s);
+  EXPECT_DOUBLE_EQ(core.speed_factor, cfg.speed_factor);
+  EXPECT_DOUBLE_EQ(core.min_confidence, cfg.min_confidence);
+  EXPECT_EQ(core.slow_after_frames, cfg.slow_after_frames);
+  EXPECT_EQ(core.stop_after_frames, cfg.stop_after_frames);
+  EXPECT_DOUBLE_EQ(core.slow_factor, cfg.slow_factor);
+  EXPECT_DOUBLE_EQ(core.watchdog_timeout_s, cfg.watchdog_timeout_s);
+  EXPECT_DOUBLE_EQ(core.max_linear_accel, cfg.max_linear_accel);
+  EXPECT_DOUBLE_EQ(core.max_angular_accel, cfg.max_angular_accel);
+  // Each field from its own config field: values no default has come through.
+  arl::RouteFollowerConfig config = arl::RouteFollowerConfig::__getDefault__();
+  config.max_homing_turn_rate = 0.25;
+  config.homing_time_constant = 0.75;
+  config.watchdog_timeout = 2.5;
+  const arl::RouteFollowerParams changed = arl::toParams(config);
+  EXPECT_DOUBLE_EQ(0.25, changed.max_homing_turn_rps);
+  EXPECT_DOUBLE_EQ(0.75, changed.homing_time_constant_s);
+  EXPECT_DOUBLE_EQ(2.5, changed.watchdog_timeout_s);
+}
+
 TEST(Reconfigure, LocalizerFieldsTheCfgDoesNotHaveComeFromTheBase)
 {
   arl::LocalizerParams base;
