@@ -145,7 +145,8 @@ class FiguresTest(unittest.TestCase):
             closed_loop.write_params(path, extra)
             with open(path) as f:
                 params = yaml.safe_load(f)
-            self.assertEqual(params, {"localizer": {"horizontal_fov_deg": 90.0, "max_shift_px": 6},
+            self.assertEqual(params, {"localizer": {"horizontal_fov_deg": 90.0, "max_shift_px": 6,
+                                                    "init_confirm_frames": 30},
                                       "route_follower": {"homing_gain": 2.0}})
             with open(extra, "w") as f:
                 f.write("max_shift_px: 6\n")
