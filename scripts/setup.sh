@@ -74,7 +74,7 @@ elif [ "$os_id" = debian ]; then
     libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure librostest-dev python3-rostest \
     rosbash libnodeletlib-tools ros-image-view libdiagnostic-updater-dev ros-nav-msgs libnav-msgs-dev ros-std-srvs libstd-srvs-dev \
     python3-rosbag python3-rosnode python3-rostopic python3-roslaunch python3-rosservice python3-rospy \
-    python3-sensor-msgs python3-std-msgs python3-std-srvs python3-nav-msgs python3-diagnostic-msgs python3-nodelet \
+    python3-sensor-msgs python3-geometry-msgs python3-rosgraph-msgs python3-std-msgs python3-std-srvs python3-nav-msgs python3-diagnostic-msgs python3-nodelet \
     libopencv-dev libeigen3-dev libgtest-dev libbenchmark-dev clang libclang-rt-14-dev \
     python3-numpy python3-matplotlib python3-opencv python3-yaml
 elif [ "$os_id" = ubuntu ] && [ "$os_version" = 20.04 ]; then
