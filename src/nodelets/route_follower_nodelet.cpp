@@ -14,6 +14,7 @@
 // sees a localizer that stopped, whatever stamps its camera gave.
 #include <cmath>
 #include <map>
+#include <functional>
 #include <memory>
 #include <set>
 #include <string>
@@ -47,6 +48,9 @@ private:
   bool startCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool pauseCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool stopCb(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  /// A service's answer: `action` on the follower, or `without_map` and why there is none; logged.
+  bool serve(const char* name, const char* without_map, std_srvs::Trigger::Response& res,
+             const std::function<bool(std::string*)>& action);
   void loadMap(const std::string& path);
   void applyParams();
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
@@ -257,46 +261,33 @@ bool RouteFollowerNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs
 {
   if (!follower_ && !map_path_.empty())
     loadMap(map_path_);
-  if (!follower_)
-  {
-    res.success = false;
-    res.message = "cannot drive: " + map_error_;
-  }
-  else
-  {
-    res.success = follower_->start(ros::Time::now().toSec(), &res.message);
-  }
-  NODELET_INFO("~start: %s", res.message.c_str());
-  return true;
+  return serve("start", "cannot drive: ", res,
+               [this](std::string* message) { return follower_->start(ros::Time::now().toSec(), message); });
 }
 
 bool RouteFollowerNodelet::pauseCb(std_srvs::Trigger::Request& /*req*/, std_srvs::Trigger::Response& res)
 {
-  if (!follower_)
-  {
-    res.success = false;
-    res.message = "not driving: " + map_error_;
-  }
-  else
-  {
-    res.success = follower_->pause(&res.message);
-  }
-  NODELET_INFO("~pause: %s", res.message.c_str());
-  return true;
+  return serve("pause", "not driving: ", res, [this](std::string* message) { return follower_->pause(message); });
 }
 
 bool RouteFollowerNodelet::stopCb(std_srvs::Trigger::Request& /*req*/, std_srvs::Trigger::Response& res)
 {
+  return serve("stop", "not driving: ", res, [this](std::string* message) { return follower_->stop(message); });
+}
+
+bool RouteFollowerNodelet::serve(const char* name, const char* without_map, std_srvs::Trigger::Response& res,
+                                 const std::function<bool(std::string*)>& action)
+{
   if (!follower_)
   {
     res.success = false;
-    res.message = "not driving: " + map_error_;
+    res.message = without_map + map_error_;
   }
   else
   {
-    res.success = follower_->stop(&res.message);
+    res.success = action(&res.message);
   }
-  NODELET_INFO("~stop: %s", res.message.c_str());
+  NODELET_INFO("~%s: %s", name, res.message.c_str());
   return true;
 }
 
