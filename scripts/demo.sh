@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # One command on a fresh machine: install and build (scripts/setup.sh), then run the teach-and-repeat
 # demo (scripts/run_demo) on a synthetic route the package renders itself.
-#   scripts/demo.sh [WORKSPACE] [OUTPUT_DIR]
+# usage: scripts/demo.sh [WORKSPACE] [OUTPUT_DIR]
 # With --closed-loop: the closed-loop demo instead (scripts/run_closed_loop): the simulator drives the
 # route while teach.launch records it, then the route follower drives it again from 1 m to the side and
 # 10 deg turned, and the taught commands are replayed without the camera for comparison; writes the plot
