@@ -11,7 +11,6 @@ import shlex
 import shutil
 import signal
 import subprocess
-import tempfile
 import unittest
 
 import rospy
@@ -57,9 +56,7 @@ class DocumentedCommandsTest(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('documented_commands_test')
-        cls.tmp = tempfile.mkdtemp(prefix='along_route_documented_test_')
-        fx.generate_route(cls.tmp, frames=FRAMES)
+        fx.set_up_route(cls, 'documented_commands_test', FRAMES, 'along_route_documented_test_')
         cls.user_dir = os.path.join(cls.tmp, 'user')
         os.mkdir(cls.user_dir)
         cls.map_path = os.path.join(cls.user_dir, 'route.bag')

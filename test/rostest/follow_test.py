@@ -6,7 +6,6 @@ dynamic_reconfigure, and a map without taught motion refused with a clear error.
 
 import os
 import shutil
-import tempfile
 import threading
 import unittest
 
@@ -96,9 +95,7 @@ class FollowTest(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('follow_test')
-        cls.tmp = tempfile.mkdtemp(prefix='along_route_follow_test_')
-        fx.generate_route(cls.tmp, frames=FRAMES)
+        fx.set_up_route(cls, 'follow_test', FRAMES, 'along_route_follow_test_')
         cls.map_path = rospy.get_param('~map')
         cls.map_odom_path = rospy.get_param('~map_odom')
         cls.diagnostics = fx.DiagnosticsCollector()

@@ -7,7 +7,6 @@ import os
 import shutil
 import signal
 import subprocess
-import tempfile
 import unittest
 
 import rospy
@@ -25,9 +24,7 @@ class LoopSimTimeTest(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('loop_sim_time_test')
-        cls.tmp = tempfile.mkdtemp(prefix='along_route_loop_test_')
-        fx.generate_route(cls.tmp, frames=FRAMES)
+        fx.set_up_route(cls, 'loop_sim_time_test', FRAMES, 'along_route_loop_test_')
         cls.map_path = rospy.get_param('~map')
         cls.repeat = fx.read_messages(os.path.join(cls.tmp, 'repeat.bag'), fx.CAMERA_TOPIC)
         cls.truth = [int(t['teach_frame']) for t in fx.read_ground_truth(os.path.join(cls.tmp, 'ground_truth.csv'))]

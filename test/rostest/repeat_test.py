@@ -6,7 +6,6 @@ dropout."""
 
 import os
 import shutil
-import tempfile
 import threading
 import unittest
 
@@ -44,9 +43,7 @@ class RepeatTest(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('repeat_test')
-        cls.tmp = tempfile.mkdtemp(prefix='along_route_repeat_test_')
-        fx.generate_route(cls.tmp, frames=FRAMES)
+        fx.set_up_route(cls, 'repeat_test', FRAMES, 'along_route_repeat_test_')
         cls.map_path = rospy.get_param('~map')
         cls.teach = fx.read_messages(os.path.join(cls.tmp, 'teach.bag'), fx.CAMERA_TOPIC)
         cls.repeat = fx.read_messages(os.path.join(cls.tmp, 'repeat.bag'), fx.CAMERA_TOPIC)

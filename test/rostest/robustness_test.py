@@ -5,7 +5,6 @@ and loaded again in its running manager localizes again."""
 
 import os
 import shutil
-import tempfile
 import time
 import unittest
 
@@ -39,9 +38,7 @@ class RobustnessTest(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('robustness_test')
-        cls.tmp = tempfile.mkdtemp(prefix='along_route_robustness_test_')
-        fx.generate_route(cls.tmp, frames=FRAMES)
+        fx.set_up_route(cls, 'robustness_test', FRAMES, 'along_route_robustness_test_')
         cls.map_path = rospy.get_param('~map')
         cls.teach = fx.read_messages(os.path.join(cls.tmp, 'teach.bag'), fx.CAMERA_TOPIC)
         cls.rosout = fx.RosoutCollector()

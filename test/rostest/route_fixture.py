@@ -29,6 +29,15 @@ def generate_route(output, frames=60, seed=3, rate=10.0):
                    check=True, timeout=300, stdout=subprocess.DEVNULL)
 
 
+def set_up_route(test_class, node_name, frames, prefix):
+    """The start of a rostest's setUpClass: the test node, a fresh folder test_class.tmp and the synthetic
+    route rendered into it (teach.bag, repeat.bag, ground_truth.csv)."""
+    import tempfile
+    rospy.init_node(node_name)
+    test_class.tmp = tempfile.mkdtemp(prefix=prefix)
+    generate_route(test_class.tmp, frames=frames)
+
+
 def read_ground_truth(path):
     import csv
     with open(path) as f:

@@ -7,7 +7,6 @@ import os
 import shutil
 import signal
 import subprocess
-import tempfile
 import time
 import unittest
 
@@ -41,9 +40,7 @@ class TeachInterruptTest(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('teach_interrupt_test')
-        cls.tmp = tempfile.mkdtemp(prefix='along_route_interrupt_test_')
-        fx.generate_route(cls.tmp, frames=FRAMES)
+        fx.set_up_route(cls, 'teach_interrupt_test', FRAMES, 'along_route_interrupt_test_')
         cls.teach = fx.read_messages(os.path.join(cls.tmp, 'teach.bag'), fx.CAMERA_TOPIC)
         cls.processes = []
 

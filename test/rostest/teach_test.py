@@ -4,7 +4,6 @@
 import glob
 import os
 import shutil
-import tempfile
 import unittest
 
 import rospy
@@ -23,9 +22,7 @@ class TeachTest(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('teach_test')
-        cls.tmp = tempfile.mkdtemp(prefix='along_route_teach_test_')
-        fx.generate_route(cls.tmp, frames=FRAMES)
+        fx.set_up_route(cls, 'teach_test', FRAMES, 'along_route_teach_test_')
         cls.teach = fx.read_messages(os.path.join(cls.tmp, 'teach.bag'), fx.CAMERA_TOPIC)
         cls.maps = {ns: rospy.get_param('~map_' + ns) for ns in ('every', 'nth', 'manual')}
         cls.preprocessed = fx.Collector('/every/image_preprocessed', Image)
