@@ -17,7 +17,7 @@ enum class SubpixelFit
   kEquiangular  ///< crossing of two lines of opposite slopes through them (exact for SAD on a linear ramp)
 };
 
-/// How the homing estimate is measured (homingShift, homing.cpp). README, Homing.
+/// How the homing estimate is measured (homingShift, homing.cpp). doc/results.md, Homing.
 struct HomingParams
 {
   /// Shifts searched, [-max_shift_px, max_shift_px], px of the preprocessed image. Wider than the

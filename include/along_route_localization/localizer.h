@@ -108,7 +108,7 @@ struct LocalizerParams
   /// again with the whole map, instead of an empty window: they are frames the robot has seen, and the
   /// loss was judged on them (lost_window_frames). The rows of the lost track are dropped: they covered
   /// only its band. 0 = start from an empty window. At most K - 1 are used. That first frame computes
-  /// their whole-map rows too, so it costs several global frames (README, Performance).
+  /// their whole-map rows too, so it costs several global frames (doc/results.md, Performance).
   int relocalization_rows = 8;
   /// Where the robot starts, on the first frame after construction or reset() (a new map, time going
   /// back in a looping bag). >= 0: at this keyframe (teach and repeat: the repeat starts where the teach
@@ -160,7 +160,7 @@ struct LocalizerParams
   double horizontal_fov_rad = 1.0;    ///< camera horizontal field of view, for the homing angle
   /// The reported shift (and homing angle) of the matched keyframe is measured by HomingEstimator over
   /// the whole width, searching +-homing_max_shift_px px horizontally and, for each column,
-  /// +-homing_max_vertical_shift_px px vertically (HomingParams; README, Homing).
+  /// +-homing_max_vertical_shift_px px vertically (HomingParams; doc/results.md, Homing).
   int homing_max_shift_px = 16;
   int homing_max_vertical_shift_px = 2;
   bool parallel = true;               ///< spread global searches over cores

@@ -307,7 +307,7 @@ bool readStromovkaPairs(std::vector<StromovkaPair>* pairs)
   return !pairs->empty();
 }
 
-/// The figures of the README's Homing table for one set of pairs.
+/// The figures of the Homing table (doc/results.md) for one set of pairs.
 struct HomingFigures
 {
   double median_error_px = 0.0;
