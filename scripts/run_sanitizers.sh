@@ -139,7 +139,7 @@ if build_ws "$ws_tsan" "$tsan_flags" test_core test_map_io along_route_localizat
   drivers_ok=true
   for driver in "${drivers[@]}"; do
     # shellcheck disable=SC2046
-    g++ -std=c++14 -O2 -g -Wall -Wextra $tsan_flags -I"$here/include" -I"$here/src" \
+    g++ -std=c++14 -O2 -g -Wall -Wextra $tsan_flags -I"$here/include" -I"$here/src" -I"$ws_tsan/devel/include" \
       "${ros_cflags[@]+"${ros_cflags[@]}"}" $(pkg-config --cflags opencv4) \
       "$here/test/sanitizers/$driver.cpp" -o "$ws_tsan/$driver" -L"$lib" -Wl,-rpath,"$lib" \
       "${ros_ldflags[@]+"${ros_ldflags[@]}"}" \
