@@ -84,10 +84,12 @@ private:
   std::vector<double> costs_;           // scratch: the cost per shift
 };
 
-/// The shift_px of HomingEstimator(width, height, first_row, {max_shift_px, max_vertical_shift_px}, the
-/// other parameters at their defaults) for one pair: what the Localizer reports for its matched keyframe.
-/// The search ranges are lowered to what the image size allows ((width - 1) / 2 and
-/// height - first_row - 1). The estimator's scratch is kept per thread.
+/// HomingParams with the two search ranges the Localizer exposes, lowered to what the image size allows
+/// ((width - 1) / 2 and height - first_row - 1), the other parameters at their defaults.
+HomingParams clampedHomingParams(int width, int height, int first_row, int max_shift_px, int max_vertical_shift_px);
+
+/// The shift_px of HomingEstimator(width, height, first_row, clampedHomingParams(...)) for one pair: what the
+/// Localizer (which keeps its estimator) reports for its matched keyframe. Builds an estimator per call.
 double measureHomingShift(const uint8_t* query, const uint8_t* keyframe, int width, int height, int first_row,
                           int max_shift_px, int max_vertical_shift_px);
 

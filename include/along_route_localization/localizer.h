@@ -11,6 +11,7 @@
 
 #include "along_route_localization/contrast_enhancement.h"
 #include "along_route_localization/cost_ring_buffer.h"
+#include "along_route_localization/homing.h"
 #include "along_route_localization/image_difference.h"
 #include "along_route_localization/online_dtw.h"
 #include "along_route_localization/route_map.h"
@@ -349,9 +350,10 @@ private:
   /// largest margin seen). trackContradicted needs more than this.
   float chanceMargin(int rows);
   static constexpr int kChanceWindows = 20;
-  /// Status lost from the track at `track_keyframe`: the ring buffer is cleared (its rows covered only the
-  /// track's band) and the dead-reckoned answer starts there (dead_reckon_while_lost).
-  void loseTrack(int track_keyframe);
+  /// Status lost from the track at `track_position` (keyframes): the ring buffer is cleared (its rows
+  /// covered only the track's band) and the dead-reckoned answer goes on from there at coastSpeed()
+  /// (dead_reckon_while_lost). Also for a gap that restarts the search (skipFrames).
+  void loseTrack(double track_position);
   /// The checks while coasting confirmed `keyframe`, another place: the track moves there, the check's
   /// whole-map rows becoming the ring buffer's.
   void moveTrackTo(int keyframe);
@@ -361,6 +363,7 @@ private:
   std::shared_ptr<const RouteMap> map_;
   LocalizerParams params_;
   std::unique_ptr<ImageDifference> difference_;
+  std::unique_ptr<HomingEstimator> homing_;  // the reported shift of the matched keyframe (homing.h)
   std::unique_ptr<CensusDifference> census_difference_;
   std::unique_ptr<ImageDifference> coarse_difference_;  // global search on halved images (or none)
   std::vector<uint8_t> coarse_keyframes_;              // halveImage of every keyframe, contiguous
@@ -383,10 +386,9 @@ private:
   OnlineDtw dtw_;
 
   // per-frame scratch, sized once per map / parameter change
-  std::vector<float> raw_costs_, shifts_;              // indexed by keyframe; valid in the newest band
+  std::vector<float> raw_costs_, shifts_;              // indexed by keyframe: computeRow's scratch
   std::vector<uint8_t> mask_;                          // informative entries of the newest band
   cv::Mat query_copy_;                                 // only for non-continuous input
-  int newest_first_ = 0, newest_width_ = 0;            // band of the newest row
 
   LocalizationStatus status_ = LocalizationStatus::kInitializing;
   int last_match_ = -1;
@@ -417,14 +419,12 @@ private:
   int chance_rows_ = -1;                 // rows chance_margin_ was measured for (-1: not yet)
   float chance_margin_ = 0.0f;
   bool coasting_ = false;                // weak evidence: answering the dead-reckoned coast_position_
-  bool contradicted_ = false;            // while coasting, this frame's check found another place (published: lost)
   int contradicting_place_ = -1;         // the place the last trackContradicted found
   GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed
   double coast_position_ = 0.0;
   int last_confident_ = -1;              // the last confident, informative answer while tracking
   int frames_since_confident_ = 0;
   double lost_position_ = -1.0;          // dead-reckoned keyframe while lost (< 0: none, no track to go on)
-  double lost_speed_ = 0.0;              // keyframes per frame it moves on at: the cruise speed at the loss
 };
 
 }  // namespace along_route_localization

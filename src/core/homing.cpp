@@ -148,18 +148,20 @@ HomingEstimate HomingEstimator::estimate(const uint8_t* query, const uint8_t* ke
   return result;
 }
 
-double measureHomingShift(const uint8_t* query, const uint8_t* keyframe, int width, int height, int first_row,
-                          int max_shift_px, int max_vertical_shift_px)
+HomingParams clampedHomingParams(int width, int height, int first_row, int max_shift_px, int max_vertical_shift_px)
 {
   HomingParams params;
   params.max_shift_px = std::max(0, std::min(max_shift_px, (width - 1) / 2));
   params.max_vertical_shift_px = std::max(0, std::min(max_vertical_shift_px, height - first_row - 1));
-  thread_local std::unique_ptr<HomingEstimator> estimator;
-  if (!estimator || estimator->width() != width || estimator->height() != height ||
-      estimator->firstRow() != first_row || estimator->params().max_shift_px != params.max_shift_px ||
-      estimator->params().max_vertical_shift_px != params.max_vertical_shift_px)
-    estimator.reset(new HomingEstimator(width, height, first_row, params));
-  return estimator->estimate(query, keyframe).shift_px;
+  return params;
+}
+
+double measureHomingShift(const uint8_t* query, const uint8_t* keyframe, int width, int height, int first_row,
+                          int max_shift_px, int max_vertical_shift_px)
+{
+  HomingEstimator estimator(width, height, first_row,
+                            clampedHomingParams(width, height, first_row, max_shift_px, max_vertical_shift_px));
+  return estimator.estimate(query, keyframe).shift_px;
 }
 
 }  // namespace along_route_localization

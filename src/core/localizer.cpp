@@ -11,8 +11,6 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "along_route_localization/homing.h"
-
 namespace along_route_localization
 {
 
@@ -192,7 +190,7 @@ void Localizer::start()
   status_ = LocalizationStatus::kInitializing;
   last_match_ = -1;
   lost_position_ = -1.0;
-  coasting_ = contradicted_ = false;
+  coasting_ = false;
   last_confident_ = -1;
   frames_since_confident_ = 0;
   start_check_ = false;
@@ -217,7 +215,9 @@ void Localizer::setParams(const LocalizerParams& params)
   const bool comparators_changed = !difference_ || params.max_shift_px != params_.max_shift_px ||
                                    params.subpixel_shift != params_.subpixel_shift ||
                                    params.cost_function != params_.cost_function ||
-                                   params.coarse_search_keyframes != params_.coarse_search_keyframes;
+                                   params.coarse_search_keyframes != params_.coarse_search_keyframes ||
+                                   params.homing_max_shift_px != params_.homing_max_shift_px ||
+                                   params.homing_max_vertical_shift_px != params_.homing_max_vertical_shift_px;
   params_ = params;
   dtw_.setParams(params_.dtw);
   confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
@@ -287,6 +287,9 @@ void Localizer::rebuildComparators()
   const int w = map_->width(), h = map_->height();
   const int first_row = firstComparedRow();
   difference_.reset(new ImageDifference(w, h, first_row, params_.max_shift_px, params_.subpixel_shift));
+  homing_.reset(new HomingEstimator(w, h, first_row,
+                                    clampedHomingParams(w, h, first_row, params_.homing_max_shift_px,
+                                                        params_.homing_max_vertical_shift_px)));
   census_difference_.reset();
   keyframe_census_.clear();
   if (params_.cost_function == CostFunction::kCensus)
@@ -445,10 +448,6 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
     for (int k = 0; k < width; ++k)
       row[k] *= weight;
   }
-  if (target && target != &ring_)
-    return;
-  newest_first_ = first;
-  newest_width_ = width;
 }
 
 LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp_ns)
@@ -521,12 +520,7 @@ void Localizer::skipFrames(int count)
     if (params_.method == SequenceMethod::kSeqSlam)
       status_ = LocalizationStatus::kInitializing;
     else if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
-    {
-      status_ = LocalizationStatus::kLost;
-      lost_position_ = std::min(static_cast<double>(map_->size() - 1),
-                                std::max(0, last_match_) + cruise_speed_ * count);
-      lost_speed_ = std::min(static_cast<double>(params_.dtw.max_step), cruise_speed_);
-    }
+      loseTrack(std::min<double>(map_->size() - 1, last_match_ + coastSpeed() * count));
     ring_.clear();
     start_check_ = false;
     confirmation_.clear();
@@ -700,6 +694,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
 
   const bool confident = matchConfidence(match, true, 1.0) >= params_.confidence_threshold;
   bool moved_track = false;         // the checks confirmed another place: the track moved there
+  bool contradicted = false;        // while coasting, this frame's check found another place (published: lost)
   const bool confirmable = matchConfidence(match, true, evidence) >= params_.confidence_threshold;
   if (params_.method == SequenceMethod::kSeqSlam)
   {
@@ -743,21 +738,20 @@ LocalizationResult Localizer::step(const uint8_t* query)
       }
       loss_.clear();  // the detection counts afresh
     }
-    contradicted_ = false;
     if (coasting_ && query)
     {
       // Each frame may bring the evidence of another place; the track moves there once init_confirm_frames
       // checks in a row were contradicted by places that move along the route like the robot can (a
       // single check's winner is a wrong place now and then).
-      contradicted_ = trackContradicted(static_cast<int>(std::lround(coast_position_)), !check_started);
-      if (check_confirmation_.update(contradicted_ ? contradicting_place_ : -1, contradicted_,
+      contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), !check_started);
+      if (check_confirmation_.update(contradicted ? contradicting_place_ : -1, contradicted,
                                      result.query_informative))
       {
         moveTrackTo(contradicting_place_);
         match.keyframe = contradicting_place_;
         result.keyframe = contradicting_place_;
         moved_track = true;
-        contradicted_ = false;
+        contradicted = false;
       }
     }
     if (coasting_)
@@ -767,7 +761,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
         coast_position_ = std::min(static_cast<double>(n - 1), coast_position_ + coastSpeed());
       match.keyframe = static_cast<int>(std::lround(coast_position_));
       // Contradicted (published lost): the place that contradicts, unless dead_reckon_while_lost.
-      result.keyframe = contradicted_ && !params_.dead_reckon_while_lost ? contradicting_place_ : match.keyframe;
+      result.keyframe = contradicted && !params_.dead_reckon_while_lost ? contradicting_place_ : match.keyframe;
       run_position_ = -1.0;
     }
   }
@@ -792,23 +786,21 @@ LocalizationResult Localizer::step(const uint8_t* query)
   // Lost: confidence 0 until the global search confirms a place (the frame that confirms it answers there);
   // the answer is the global search's guess, or (dead_reckon_while_lost) where the robot went at the
   // cruise speed since the loss.
-  if (status_ == LocalizationStatus::kLost || contradicted_)
+  if (status_ == LocalizationStatus::kLost || contradicted)
   {
     result.confidence = 0.0;  // contradicted, or unconfirmed: no chance worth a number
     if (lost_position_ >= 0.0 && params_.dead_reckon_while_lost)
     {
-      lost_position_ = std::min(static_cast<double>(n - 1), lost_position_ + lost_speed_);
+      lost_position_ = std::min(static_cast<double>(n - 1), lost_position_ + coastSpeed());
       result.keyframe = static_cast<int>(std::lround(lost_position_));
     }
   }
-  result.status = contradicted_ ? LocalizationStatus::kLost : status_;  // lost: contradicted, not unconfirmed
+  result.status = contradicted ? LocalizationStatus::kLost : status_;  // lost: contradicted, not unconfirmed
   if (result.keyframe >= 0)
   {
     result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
     if (result.query_informative)  // the homing estimate (homing.h); a featureless query reports none
-      result.shift_px = measureHomingShift(query, map_->keyframe(result.keyframe), map_->width(), map_->height(),
-                                           firstComparedRow(), params_.homing_max_shift_px,
-                                           params_.homing_max_vertical_shift_px);
+      result.shift_px = homing_->estimate(query, map_->keyframe(result.keyframe)).shift_px;
     result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
   }
   return result;
@@ -819,7 +811,7 @@ double Localizer::coastSpeed() const
   return std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, cruise_speed_));
 }
 
-void Localizer::loseTrack(int track_keyframe)
+void Localizer::loseTrack(double track_position)
 {
   coasting_ = false;
   status_ = LocalizationStatus::kLost;
@@ -827,8 +819,7 @@ void Localizer::loseTrack(int track_keyframe)
   start_check_ = false;
   confirmation_.clear();
   relocalize_from_recent_ = true;
-  lost_position_ = track_keyframe;
-  lost_speed_ = coastSpeed();
+  lost_position_ = track_position;
 }
 
 bool Localizer::trackContradicted(int track_keyframe, bool go_on)
@@ -892,8 +883,6 @@ void Localizer::moveTrackTo(int keyframe)
     for (int k = 0; k < n; ++k)
       row[k] = check_ring_.at(age, k, 0.0f);
   }
-  newest_first_ = 0;
-  newest_width_ = n;
   last_match_ = keyframe;
   last_path_.clear();
   run_position_ = -1.0;
