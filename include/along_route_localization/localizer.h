@@ -357,6 +357,9 @@ private:
   /// The checks while coasting confirmed `keyframe`, another place: the track moves there, the check's
   /// whole-map rows becoming the ring buffer's.
   void moveTrackTo(int keyframe);
+  /// Appends to `target` the whole-map rows of the newest `count` (at most recent_count_) recent queries,
+  /// oldest first: a global search after a loss, and trackContradicted's check.
+  void replayRecentQueries(int count, CostRingBuffer* target);
   /// Keyframes per frame dead reckoning moves on at: the cruise speed, in [0, max_step].
   double coastSpeed() const;
 

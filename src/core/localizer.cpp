@@ -578,13 +578,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
   {
     // The first global search after a loss: the frames before this one, over the whole map.
     // (At most K - 1 of them: the window holds K rows with this frame's.)
-    const int capacity = static_cast<int>(recent_queries_.size());
-    const int replayed = std::min(recent_count_, params_.ring_buffer_rows - 1);
-    for (int i = recent_count_ - replayed; i < recent_count_; ++i)
-    {
-      const RecentQuery& recent = recent_queries_[(recent_next_ - recent_count_ + i + capacity) % capacity];
-      computeRow(recent.image.data(), recent.energy, recent.informative, recent.repeated, true, 0, n);
-    }
+    replayRecentQueries(std::min(recent_count_, params_.ring_buffer_rows - 1), &ring_);
   }
   relocalize_from_recent_ = false;
   if (checking_start)
@@ -825,26 +819,19 @@ void Localizer::loseTrack(double track_position)
 bool Localizer::trackContradicted(int track_keyframe, bool go_on)
 {
   const int n = static_cast<int>(map_->size());
-  const int capacity = static_cast<int>(recent_queries_.size());
   const int window = params_.ring_buffer_rows;  // grows to K rows, as a global search's window
-  if (capacity < 1 || recent_count_ < 1)
+  if (recent_count_ < 1)
     return false;  // nothing to weigh
   if (go_on && check_ring_.size() > 0 && check_ring_.capacity() == window && check_ring_.maxWidth() == n)
   {
-    // The check goes on (weak evidence, coasting): only the newest frame's whole-map row is new.
-    const RecentQuery& newest = recent_queries_[(recent_next_ - 1 + capacity) % capacity];
-    computeRow(newest.image.data(), newest.energy, newest.informative, newest.repeated, true, 0, n, &check_ring_);
+    replayRecentQueries(1, &check_ring_);  // the check goes on (coasting): only the newest frame's row is new
   }
   else
   {
     if (check_ring_.capacity() != window || check_ring_.maxWidth() != n)
       check_ring_.resize(window, n);
     check_ring_.clear();
-    for (int i = recent_count_ - std::min(recent_count_, std::min(window, capacity)); i < recent_count_; ++i)
-    {
-      const RecentQuery& recent = recent_queries_[(recent_next_ - recent_count_ + i + capacity) % capacity];
-      computeRow(recent.image.data(), recent.energy, recent.informative, recent.repeated, true, 0, n, &check_ring_);
-    }
+    replayRecentQueries(std::min(recent_count_, window), &check_ring_);
   }
   const int rows = check_ring_.size();
   const SequenceMatch elsewhere = dtw_.match(check_ring_, 0, n, rows, false, keyframe_run_.data());
@@ -870,6 +857,17 @@ bool Localizer::trackContradicted(int track_keyframe, bool go_on)
   // the DTW too, so it comes after this check's own costs were read).
   const float margin = track_cost - elsewhere.cost;
   return margin > chanceMargin(rows);
+}
+
+void Localizer::replayRecentQueries(int count, CostRingBuffer* target)
+{
+  const int n = static_cast<int>(map_->size());
+  const int capacity = static_cast<int>(recent_queries_.size());
+  for (int i = recent_count_ - count; i < recent_count_; ++i)
+  {
+    const RecentQuery& recent = recent_queries_[(recent_next_ - recent_count_ + i + capacity) % capacity];
+    computeRow(recent.image.data(), recent.energy, recent.informative, recent.repeated, true, 0, n, target);
+  }
 }
 
 void Localizer::moveTrackTo(int keyframe)
