@@ -362,6 +362,9 @@ private:
   void replayRecentQueries(int count, CostRingBuffer* target);
   /// Keyframes per frame dead reckoning moves on at: the cruise speed, in [0, max_step].
   double coastSpeed() const;
+  /// Where dead reckoning puts the robot this frame while the window holds no evidence: the last
+  /// dead-reckoned position (or the last answer) plus coastSpeed().
+  double reckonedPosition(bool first_from_start) const;
 
   std::shared_ptr<const RouteMap> map_;
   LocalizerParams params_;
@@ -377,6 +380,7 @@ private:
   std::vector<uint8_t> keyframe_repeats_;  // [k]: keyframe k shows the view of k - 1 (stationary_change_)
   std::vector<int> keyframe_run_;          // [k]: number of keyframes up to k that are not repeats
   std::vector<int> run_first_, run_last_;  // [k]: first and last keyframe of k's run (k itself if alone)
+  double reckon_position_ = -1.0;         // dead-reckoned position while the window ties; < 0: not
   double run_position_ = -1.0;             // reported position inside the current run; < 0: not in one
   double run_velocity_ = 0.0;              // keyframes per frame when the current run was entered
   ContrastRunsScratch contrast_scratch_;

@@ -325,6 +325,7 @@ void Localizer::reset()
   last_path_.clear();
   entered_query_.release();
   run_position_ = -1.0;
+  reckon_position_ = -1.0;
   tracked_frames_ = 0;
   cruise_speed_ = 1.0;
   cruise_samples_ = 1;
@@ -642,10 +643,16 @@ LocalizationResult Localizer::step(const uint8_t* query)
                        last_choice, prior, path_start);
   }
   last_path_ = match.path;
-  // A window without evidence (featureless rows only, e.g. a tunnel longer than K frames) ties every
-  // end keyframe: dead-reckon at the nominal speed instead of taking the first of the ties.
-  if (!global && dtw_.lastAccumulated()[predicted - first] <= match.cost)
-    match.keyframe = predicted;
+  // A window without evidence (featureless rows only: a blinded camera, a tunnel longer than K frames)
+  // ties every end keyframe: dead-reckon from the last answer at the robot's own speed (its cruise speed,
+  // fractional positions carried from frame to frame) instead of taking the first of the ties.
+  reckon_position_ = global ? -1.0 : reckonedPosition(first_from_start);
+  const int reckoned = static_cast<int>(std::lround(reckon_position_));
+  if (global || reckoned < first || reckoned >= first + width ||
+      dtw_.lastAccumulated()[reckoned - first] > match.cost)
+    reckon_position_ = -1.0;  // the evidence chose: the DTW's answer
+  else
+    match.keyframe = reckoned;
   if (!global && params_.method == SequenceMethod::kOnlineDtw && params_.run_dead_reckoning)
     match.keyframe = keyframeThroughRun(match.keyframe);
   else
@@ -798,6 +805,14 @@ LocalizationResult Localizer::step(const uint8_t* query)
     result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
   }
   return result;
+}
+
+double Localizer::reckonedPosition(bool first_from_start) const
+{
+  if (first_from_start)
+    return last_match_;  // the first frame of a known start is at the start keyframe
+  const double from = reckon_position_ >= 0.0 ? reckon_position_ : static_cast<double>(last_match_);
+  return std::min(static_cast<double>(map_->size() - 1), from + coastSpeed());
 }
 
 double Localizer::coastSpeed() const

@@ -1233,6 +1233,31 @@ TEST(Localizer, LongTunnelDoesNotMakeTheTrackLost)
   EXPECT_GE(right, 15) << "of 20 frames after the tunnel";
 }
 
+TEST(Localizer, BlindedTheAnswerMovesAtTheRobotsOwnSpeed)
+{
+  // The robot drives at half a keyframe per frame (every keyframe seen twice) along a textured map; for
+  // 80 frames (keyframes 60..99, K = 30 frames x 2.7) its camera is blinded (featureless queries: glare,
+  // fog, night), so most of the way no row in the window says where it is. The answer must move on at the
+  // robot's own speed (its cruise speed, about 0.5 after 120 frames at that speed), not one keyframe per
+  // frame: at the nominal speed it would end the blind stretch up to 40 keyframes ahead.
+  const auto map = syntheticMap(140);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i < 120; ++i)
+    localizer.process(keyframeCopy(*map, i / 2));
+  EXPECT_NEAR(0.5, localizer.cruiseSpeed(), 0.05) << "before the blind stretch";
+  const cv::Mat blind(32, 64, CV_8UC1, cv::Scalar(128));
+  int worst = 0;
+  for (int i = 120; i < 200; ++i)
+  {
+    const arl::LocalizationResult r = localizer.process(blind);
+    ASSERT_FALSE(r.query_informative);
+    ASSERT_EQ(LocalizationStatus::kTracking, r.status) << "frame " << i << " blinded";
+    worst = std::max(worst, std::abs(r.keyframe - i / 2));
+  }
+  // 80 frames at the cruise speed c: |80 c - 40| keyframes off, at most 4 for c within 0.5 +- 0.05.
+  EXPECT_LE(worst, 4) << "keyframes between the answer and the truth while blinded";
+}
+
 TEST(Localizer, FeaturelessQueryIsReportedUninformative)
 {
   const auto map = syntheticMap(40);
