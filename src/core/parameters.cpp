@@ -213,7 +213,7 @@ std::vector<ParameterSpec> makeTable()
   t.push_back(numberRow("missing_cost", loc, 0, 10, "cost", "Cost of a keyframe a row did not compute (outside its band)",
                         FIELD(localizer.dtw.missing_cost)));
   // At least 1: with 0 the second-best end is a neighbour of the best, the margin vanishes and the track is
-  // reported lost nearly all the time (Nordland winter drive: 1647 of 1788 frames, against none with 5).
+  // reported lost nearly all the time (doc/evaluation_history.md, Where each default came from).
   t.push_back(numberRow("exclusion_radius", loc, 1, 1000000, "keyframes",
                         "Keyframes around the best end ignored for the second-best cost", FIELD(localizer.dtw.exclusion_radius)));
   t.push_back(boolRow("column_centering", loc, "Subtract each keyframe's mean cost over the window before the DTW",
