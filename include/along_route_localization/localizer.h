@@ -323,8 +323,7 @@ private:
   /// The motion prior of the match while tracking: the robot is predicted at the last match plus the
   /// speed of the last path (pathSpeed), or at the last match itself when the query repeats the last
   /// view (the camera stood still) outside a run of identical keyframes; then only ends ahead of it pay
-  /// (the robot has not moved on, but a step back corrects an answer that ran on past the stop: the
-  /// synthetic demo's stop, within one 0.970 with a symmetric prior, 0.978 so, 0.981 without a prior).
+  /// (the robot has not moved on, but a step back corrects an answer that ran on past the stop).
   /// Inside such a run both teach and repeat stood still, and the robot goes on through it at the speed
   /// it came. For a new view only once the track has been followed for K frames (tracked_frames_); none
   /// (weight 0) before.

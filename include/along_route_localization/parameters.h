@@ -1,5 +1,5 @@
 // Parameters by name: the one table of every parameter users set (params.yaml, command line,
-// dynamic_reconfigure): its name, the field it sets, its working range, unit and meaning. Defaults are the
+// dynamic_reconfigure) of the preprocessor, localizer, map recorder and route follower: its name, the field it sets, its working range, unit and meaning. Defaults are the
 // fields' initializers; validate() checks the ranges of this table; the .cfg files are checked against it
 // (test_reconfigure).
 #ifndef ALONG_ROUTE_LOCALIZATION_PARAMETERS_H
@@ -12,17 +12,20 @@
 
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/preprocessing.h"
+#include "along_route_localization/route_follower.h"
 #include "along_route_localization/route_map.h"
 
 namespace along_route_localization
 {
 
-/// Whose parameter: the preprocessor's (stored in the map), the localizer's or the map recorder's.
+/// Whose parameter: the preprocessor's (stored in the map), the localizer's, the map recorder's or the
+/// route follower's.
 enum class ParameterGroup
 {
   kPreprocessor,
   kLocalizer,
-  kMapRecorder
+  kMapRecorder,
+  kRouteFollower
 };
 std::string toString(ParameterGroup group);
 
@@ -40,6 +43,7 @@ struct ParameterSet
   PreprocessingParams preprocessing;
   LocalizerParams localizer;
   KeyframePolicy keyframes;
+  RouteFollowerParams follower;
 };
 
 /// One row of the parameter table.
@@ -118,9 +122,10 @@ struct ParameterEntry
 
 /// Reads the entries of a flat YAML mapping ("name: value" per line, '#' comments, optional single
 /// top-level section headers such as "localizer:" whose indented entries are read the same way) without
-/// applying them. The entries of a "map_recorder:" section are skipped, so the launch files' params_file
-/// (sections preprocessor:, map_recorder:, localizer:) can be given as it is. Returns false with *error
-/// naming the file and line when the file cannot be read or a line is not "name: value".
+/// applying them. The entries of "map_recorder:" and "route_follower:" sections are skipped, so the launch
+/// files' params_file (sections preprocessor:, map_recorder:, localizer:, route_follower:) can be given as
+/// it is. Returns false with *error naming the file and line when the file cannot be read or a line is not
+/// "name: value".
 bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* entries, std::string* error);
 
 /// Applies the entries read from `path` in file order. Returns false with *error naming the file and line

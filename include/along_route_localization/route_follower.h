@@ -34,7 +34,9 @@ struct TaughtMotion
 /// keyframes is 0; records of indices >= keyframes are ignored.
 std::vector<TaughtMotion> completeTaughtMotion(const std::map<int, TaughtMotion>& recorded, size_t keyframes);
 
-/// Physical quantities a user can reason about; cfg/RouteFollower.cfg exposes them all.
+/// Physical quantities a user can reason about; cfg/RouteFollower.cfg exposes them all. Their names as users
+/// give them, working ranges, units and docs are rows of the parameter table (parameters.h, group
+/// kRouteFollower); the defaults are these initializers.
 struct RouteFollowerParams
 {
   double homing_gain = 1.0;             ///< rad/s of turn per rad of homing angle
@@ -51,7 +53,8 @@ struct RouteFollowerParams
   double max_linear_accel = 0.5;        ///< bound of the change of the forward speed, m/s^2
   double max_angular_accel = 1.0;       ///< bound of the change of the turn rate, rad/s^2
 
-  /// Empty when valid, else a sentence naming the first invalid field.
+  /// Empty when valid, else a sentence naming the first parameter outside its table range (by the name users
+  /// give it), or stop_after_frames below slow_after_frames.
   std::string validate() const;
 };
 

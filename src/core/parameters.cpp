@@ -107,7 +107,8 @@ ParameterSpec choiceRow(const char* name, Group group, const char* doc, std::vec
 
 std::vector<ParameterSpec> makeTable()
 {
-  const Group pre = Group::kPreprocessor, loc = Group::kLocalizer, rec = Group::kMapRecorder;
+  const Group pre = Group::kPreprocessor, loc = Group::kLocalizer, rec = Group::kMapRecorder,
+              fol = Group::kRouteFollower;
   const double kMaxInt = 2e9;
   std::vector<ParameterSpec> t;
   // Step 1, the preprocessor (cfg/Preprocessor.cfg); stored in the map.
@@ -212,7 +213,7 @@ std::vector<ParameterSpec> makeTable()
   t.push_back(numberRow("missing_cost", loc, 0, 10, "cost", "Cost of a keyframe a row did not compute (outside its band)",
                         FIELD(localizer.dtw.missing_cost)));
   // At least 1: with 0 the second-best end is a neighbour of the best, the margin vanishes and the track is
-  // reported lost nearly all the time (Nordland winter drive: 1647 of 1788 frames, against none with 5).
+  // reported lost nearly all the time (doc/evaluation_history.md, Where each default came from).
   t.push_back(numberRow("exclusion_radius", loc, 1, 1000000, "keyframes",
                         "Keyframes around the best end ignored for the second-best cost", FIELD(localizer.dtw.exclusion_radius)));
   t.push_back(boolRow("column_centering", loc, "Subtract each keyframe's mean cost over the window before the DTW",
@@ -289,6 +290,33 @@ std::vector<ParameterSpec> makeTable()
   t.push_back(numberRow("min_distance", rec, 0, 10000, "m",
                         "Minimum distance travelled since the last keyframe, from the odom topic (0: off)",
                         FIELD(keyframes.min_distance_m)));
+
+  // The route follower's controller and safety thresholds (cfg/RouteFollower.cfg; route_follower.h).
+  t.push_back(numberRow("homing_gain", fol, 0, 20, "rad/s per rad", "Turn rate per homing angle",
+                        FIELD(follower.homing_gain)));
+  t.push_back(numberRow("max_homing_turn_rate", fol, 0, 10, "rad/s", "Bound of the homing term |gain x angle|",
+                        FIELD(follower.max_homing_turn_rps)));
+  t.push_back(numberRow("homing_time_constant", fol, 0, 10, "s",
+                        "Low-pass time constant of the homing angle (0: none)", FIELD(follower.homing_time_constant_s)));
+  t.push_back(numberRow("speed_factor", fol, 0, 5, "", "Forward speed (and taught turn rate) = taught x this",
+                        FIELD(follower.speed_factor)));
+  t.push_back(numberRow("min_confidence", fol, 0, 1, "",
+                        "A localization whose confidence (the probability of being within one keyframe) is below "
+                        "this counts as low",
+                        FIELD(follower.min_confidence)));
+  t.push_back(numberRow("slow_after_frames", fol, 1, 1000, "frames",
+                        "Low-confidence localizations in a row before slowing", FIELD(follower.slow_after_frames)));
+  t.push_back(numberRow("stop_after_frames", fol, 1, 1000, "frames",
+                        "Low-confidence localizations in a row before stopping (at least slow_after_frames)",
+                        FIELD(follower.stop_after_frames)));
+  t.push_back(numberRow("slow_factor", fol, 0, 1, "", "Fraction of the speed while slowing",
+                        FIELD(follower.slow_factor)));
+  t.push_back(numberRow("watchdog_timeout", fol, 0.01, 60, "s", "Stop when no localization came for this long",
+                        FIELD(follower.watchdog_timeout_s)));
+  t.push_back(numberRow("max_linear_accel", fol, 0.001, 100, "m/s^2", "Bound of the change of the forward speed",
+                        FIELD(follower.max_linear_accel)));
+  t.push_back(numberRow("max_angular_accel", fol, 0.001, 100, "rad/s^2", "Bound of the change of the turn rate",
+                        FIELD(follower.max_angular_accel)));
   return t;
 }
 
@@ -363,6 +391,8 @@ std::string toString(ParameterGroup group)
       return "localizer";
     case ParameterGroup::kMapRecorder:
       return "map_recorder";
+    case ParameterGroup::kRouteFollower:
+      return "route_follower";
   }
   return "unknown";
 }
@@ -542,7 +572,7 @@ bool applyParameter(const std::string& name, const std::string& value, Preproces
                     LocalizerParams* localizer, std::string* error)
 {
   const ParameterSpec* spec = findParameter(name);
-  if (!spec || spec->group == ParameterGroup::kMapRecorder)
+  if (!spec || spec->group == ParameterGroup::kMapRecorder || spec->group == ParameterGroup::kRouteFollower)
   {
     *error = "unknown parameter '" + name + "'";
     return false;
@@ -605,7 +635,7 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
   }
   std::string line;
   int number = 0;
-  bool recorder_section = false;
+  bool skipped_section = false;
   while (std::getline(in, line))
   {
     ++number;
@@ -623,15 +653,15 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
     const bool indented = line[0] == ' ' || line[0] == '\t';
     if (value.empty())
     {
-      // A section header. The launch files' params_file has preprocessor:, map_recorder: and localizer:
-      // sections; the recorder's settings do not concern the offline localizer.
+      // A section header. The launch files' params_file has preprocessor:, map_recorder:, localizer: and
+      // route_follower: sections; the recorder's and the follower's settings do not concern the localizer.
       if (!indented)
-        recorder_section = name == "map_recorder";
+        skipped_section = name == "map_recorder" || name == "route_follower";
       continue;
     }
     if (!indented)
-      recorder_section = false;
-    if (!recorder_section)
+      skipped_section = false;
+    if (!skipped_section)
       entries->push_back({ name, value, number });
   }
   return true;
@@ -682,8 +712,10 @@ bool applyParameterEntriesChecked(const std::string& path, const std::vector<Par
   {
     const ParameterSpec* spec = findParameter(entry.name);
     std::string sentence;
-    if (spec && spec->group == ParameterGroup::kMapRecorder)
-      sentence = "'" + entry.name + "' is the map recorder's parameter; ignored here";
+    if (spec && (spec->group == ParameterGroup::kMapRecorder || spec->group == ParameterGroup::kRouteFollower))
+      sentence = "'" + entry.name + "' is the " +
+                 (spec->group == ParameterGroup::kMapRecorder ? "map recorder" : "route follower") +
+                 "'s parameter; ignored here";
     else
       sentence = setParameterChecked(entry.name, entry.value, &params);
     if (!sentence.empty())

@@ -1,5 +1,7 @@
 #include "along_route_localization/route_follower.h"
 
+#include "along_route_localization/parameters.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -64,30 +66,15 @@ std::vector<TaughtMotion> completeTaughtMotion(const std::map<int, TaughtMotion>
 
 std::string RouteFollowerParams::validate() const
 {
+  // The working range of each parameter is the table's (parameters.cpp); the rest is the one combination.
+  ParameterSet set;
+  set.follower = *this;
+  const std::string out_of_range = checkRanges(ParameterGroup::kRouteFollower, set);
+  if (!out_of_range.empty())
+    return out_of_range;
   std::ostringstream e;
-  const auto finite_at_least = [](double value, double low) { return std::isfinite(value) && value >= low; };
-  if (!finite_at_least(homing_gain, 0.0))
-    e << "homing_gain must be >= 0, got " << homing_gain;
-  else if (!finite_at_least(max_homing_turn_rps, 0.0))
-    e << "max_homing_turn_rps must be >= 0, got " << max_homing_turn_rps;
-  else if (!finite_at_least(homing_time_constant_s, 0.0))
-    e << "homing_time_constant_s must be >= 0, got " << homing_time_constant_s;
-  else if (!finite_at_least(speed_factor, 0.0))
-    e << "speed_factor must be >= 0, got " << speed_factor;
-  else if (!(min_confidence >= 0.0 && min_confidence <= 1.0))
-    e << "min_confidence must be in [0, 1], got " << min_confidence;
-  else if (slow_after_frames < 1)
-    e << "slow_after_frames must be >= 1, got " << slow_after_frames;
-  else if (stop_after_frames < slow_after_frames)
+  if (stop_after_frames < slow_after_frames)
     e << "stop_after_frames must be >= slow_after_frames (" << slow_after_frames << "), got " << stop_after_frames;
-  else if (!(slow_factor >= 0.0 && slow_factor <= 1.0))
-    e << "slow_factor must be in [0, 1], got " << slow_factor;
-  else if (!(std::isfinite(watchdog_timeout_s) && watchdog_timeout_s > 0.0))
-    e << "watchdog_timeout_s must be > 0, got " << watchdog_timeout_s;
-  else if (!(std::isfinite(max_linear_accel) && max_linear_accel > 0.0))
-    e << "max_linear_accel must be > 0, got " << max_linear_accel;
-  else if (!(std::isfinite(max_angular_accel) && max_angular_accel > 0.0))
-    e << "max_angular_accel must be > 0, got " << max_angular_accel;
   return e.str();
 }
 

@@ -40,15 +40,6 @@ std::string mistypedSentence(const std::string& name, const XmlRpc::XmlRpcValue&
   return "~" + name + " = " + given + " is not " + wanted + "; refused, keeping " + kept;
 }
 
-std::string outOfRangeSentence(const std::string& name, double value, double lo, double hi)
-{
-  std::ostringstream text;
-  text << "~" << name << " = " << value << " is outside " << lo << " .. " << hi;
-  if (value < lo || value > hi)
-    text << "; dynamic_reconfigure uses " << (value < lo ? lo : hi) << " instead";
-  return text.str();
-}
-
 std::string unreadSentence(const std::string& name, const std::string& who, const std::set<std::string>& read)
 {
   std::string sentence = "~" + name + " is not a parameter of the " + who + " and is ignored";

@@ -77,35 +77,6 @@ std::vector<std::string> mistypedParameters(const ros::NodeHandle& private_nh)
 /// It reads: a, b, c".
 std::string unreadSentence(const std::string& name, const std::string& who, const std::set<std::string>& read);
 
-/// "~name = value is outside lo .. hi; dynamic_reconfigure uses lo instead".
-std::string outOfRangeSentence(const std::string& name, double value, double lo, double hi);
-
-/// For each numeric parameter of a dynamic_reconfigure config set under private_nh outside the .cfg's
-/// range, a sentence saying so: dynamic_reconfigure clamps such a value without a word. Call before
-/// creating the reconfigure server (which writes the clamped values back). Only for a .cfg that declares
-/// ranges (RouteFollower.cfg; the others' values are corrected by the parameter table).
-template <class Config>
-std::vector<std::string> outOfRangeParameters(const ros::NodeHandle& private_nh)
-{
-  const Config min = Config::__getMin__(), max = Config::__getMax__();
-  std::vector<std::string> sentences;
-  for (const auto& description : Config::__getParamDescriptions__())
-  {
-    const bool is_int = description->type == "int";
-    double value = 0.0;
-    if ((!is_int && description->type != "double") || !private_nh.getParam(description->name, value))
-      continue;
-    boost::any low, high;
-    description->getValue(min, low);
-    description->getValue(max, high);
-    const double lo = is_int ? boost::any_cast<int>(low) : boost::any_cast<double>(low);
-    const double hi = is_int ? boost::any_cast<int>(high) : boost::any_cast<double>(high);
-    if (!(value >= lo && value <= hi))
-      sentences.push_back(outOfRangeSentence(description->name, value, lo, hi));
-  }
-  return sentences;
-}
-
 /// "a, b, c".
 std::string joined(const std::set<std::string>& names);
 

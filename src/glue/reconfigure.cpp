@@ -61,6 +61,11 @@ KeyframePolicy toPolicy(const MapRecorderConfig& config)
   return fromConfig(config, ParameterSet(), nullptr).keyframes;
 }
 
+RouteFollowerParams toParams(const RouteFollowerConfig& config)
+{
+  return fromConfig(config, ParameterSet(), nullptr).follower;
+}
+
 namespace
 {
 
@@ -140,23 +145,6 @@ void logConfigReview(const ConfigReview& review, const std::string& logger, cons
     ROS_ERROR_NAMED(logger, "Rejected %s: %s; keeping the previous ones", what.c_str(), review.rejected.c_str());
   for (const std::string& change : review.changes)
     ROS_INFO_NAMED(logger, "%s", change.c_str());
-}
-
-RouteFollowerParams toParams(const RouteFollowerConfig& config)
-{
-  RouteFollowerParams params;
-  params.homing_gain = config.homing_gain;
-  params.max_homing_turn_rps = config.max_homing_turn_rate;
-  params.homing_time_constant_s = config.homing_time_constant;
-  params.speed_factor = config.speed_factor;
-  params.min_confidence = config.min_confidence;
-  params.slow_after_frames = config.slow_after_frames;
-  params.stop_after_frames = config.stop_after_frames;
-  params.slow_factor = config.slow_factor;
-  params.watchdog_timeout_s = config.watchdog_timeout;
-  params.max_linear_accel = config.max_linear_accel;
-  params.max_angular_accel = config.max_angular_accel;
-  return params;
 }
 
 }  // namespace along_route_localization

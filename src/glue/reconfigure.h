@@ -30,8 +30,9 @@ PreprocessingParams toParams(const PreprocessorConfig& config, std::string* prob
 /// base's and, when `problem` is given, is named there.
 LocalizerParams toParams(const LocalizerConfig& config, LocalizerParams base, std::string* problem = nullptr);
 
-/// Every field of RouteFollowerParams comes from the config (max_homing_turn_rate -> max_homing_turn_rps,
-/// homing_time_constant -> homing_time_constant_s, watchdog_timeout -> watchdog_timeout_s).
+/// Every field of RouteFollowerParams comes from the config, through the parameter table
+/// (max_homing_turn_rate sets max_homing_turn_rps, homing_time_constant homing_time_constant_s,
+/// watchdog_timeout watchdog_timeout_s).
 RouteFollowerParams toParams(const RouteFollowerConfig& config);
 /// The map recorder's keyframe policy from its config.
 KeyframePolicy toPolicy(const MapRecorderConfig& config);

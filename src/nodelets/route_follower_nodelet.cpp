@@ -71,6 +71,7 @@ private:
   std::shared_ptr<dynamic_reconfigure::Server<RouteFollowerConfig>> reconfigure_server_;
   RouteFollowerParams requested_params_;
   bool params_changed_ = false;
+  RouteFollowerConfig last_valid_config_ = RouteFollowerConfig::__getDefault__();
 
   // Used only from the nodelet's single-threaded callback queue (localizations, the control timer, the
   // services and the diagnostics timer), so nothing here needs a lock.
@@ -89,8 +90,7 @@ void RouteFollowerNodelet::onInit()
   const std::set<std::string> own = { "map", "autostart", "control_rate" };
   read.insert(own.begin(), own.end());
   for (const std::string& name : unreadParameters(private_nh, read))
-    NODELET_WARN("~%s is not a parameter of the route follower and is ignored (misspelt?). It reads %s",
-                 name.c_str(), joined(read).c_str());
+    NODELET_WARN("%s", unreadSentence(name, "route follower", read).c_str());
   private_nh.param("map", map_path_, std::string());
   bool autostart = false;
   private_nh.param("autostart", autostart, autostart);
@@ -101,8 +101,8 @@ void RouteFollowerNodelet::onInit()
     control_rate_hz_ = 20.0;
   }
 
-  for (const std::string& sentence : outOfRangeParameters<RouteFollowerConfig>(private_nh))
-    NODELET_ERROR("%s", sentence.c_str());
+  for (const std::string& sentence : mistypedParameters<RouteFollowerConfig>(private_nh))
+    NODELET_WARN("%s", sentence.c_str());
   reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<RouteFollowerConfig>>(config_mutex_, private_nh);
   reconfigure_server_->setCallback([this](RouteFollowerConfig& config, uint32_t level) { configCb(config, level); });
 
@@ -169,19 +169,21 @@ void RouteFollowerNodelet::loadMap(const std::string& path)
 
 void RouteFollowerNodelet::configCb(RouteFollowerConfig& config, uint32_t /*level*/)
 {
+  // Corrections, so the panel shows the values in use: each value into its working range (the parameter
+  // table's), then the combination.
+  std::vector<std::string> corrections = correctToTable(config, last_valid_config_);
   if (config.stop_after_frames < config.slow_after_frames)
   {
-    NODELET_WARN("stop_after_frames %d is below slow_after_frames %d; using %d", config.stop_after_frames,
-                 config.slow_after_frames, config.slow_after_frames);
+    corrections.push_back("stop_after_frames " + std::to_string(config.stop_after_frames) +
+                          " is below slow_after_frames " + std::to_string(config.slow_after_frames) + "; using " +
+                          std::to_string(config.slow_after_frames));
     config.stop_after_frames = config.slow_after_frames;
   }
   const RouteFollowerParams params = toParams(config);
-  const std::string invalid = params.validate();
-  if (!invalid.empty())
-  {
-    NODELET_ERROR("Ignoring the new route follower parameters: %s", invalid.c_str());
+  const ConfigReview review = reviewConfig(config, last_valid_config_, std::move(corrections), params.validate());
+  logConfigReview(review, getName(), "route follower parameters");
+  if (!review.rejected.empty())
     return;
-  }
   requested_params_ = params;
   params_changed_ = true;
 }

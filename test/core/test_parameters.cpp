@@ -69,6 +69,11 @@ TEST_F(ParameterFile, ANameGivenTwiceIsAnErrorNamingBothLines)
   EXPECT_DOUBLE_EQ(0.25, preprocessing_.sky_fraction);
   // The recorder's section is skipped, so its names do not count.
   EXPECT_EQ("", load("map_recorder:\n  every_nth: 3\n  every_nth: 4\nmax_step: 2\n"));
+  // So is the route follower's (follow.launch's params_file), and a section after it is read again.
+  EXPECT_EQ("", load("route_follower:\n  homing_gain: 3.0\n  homing_gain: 2.0\nlocalizer:\n  max_step: 4\n"));
+  EXPECT_EQ(4, localizer_.dtw.max_step);
+  // Outside its section, a follower's parameter is not the localizer's: refused, naming it.
+  EXPECT_EQ(path_ + ":1: unknown parameter 'homing_gain'", load("homing_gain: 3.0\n"));
 }
 
 TEST_F(ParameterFile, EntriesAreReadWithTheirLinesAndAppliedLater)
@@ -162,6 +167,12 @@ TEST(ParameterTable, EachDefaultIsTheFieldsInitializerAndLiesInItsRange)
   }
   EXPECT_EQ("", defaults.localizer.validate());
   EXPECT_EQ("", defaults.preprocessing.validate());
+  EXPECT_EQ("", defaults.follower.validate());
+  // The route follower's defaults are RouteFollowerParams' initializers, read by the name users give.
+  EXPECT_EQ("0.5", arl::findParameter("max_homing_turn_rate")->defaultText());
+  EXPECT_EQ("0.3", arl::findParameter("homing_time_constant")->defaultText());
+  EXPECT_EQ("1", arl::findParameter("watchdog_timeout")->defaultText());
+  EXPECT_EQ("8", arl::findParameter("stop_after_frames")->defaultText());
 }
 
 TEST(ParameterTable, ValidateRefusesEveryNumberOutsideItsTableRange)
@@ -178,8 +189,9 @@ TEST(ParameterTable, ValidateRefusesEveryNumberOutsideItsTableRange)
     {
       arl::ParameterSet params;
       spec.set_number(&params, value);
-      const std::string error = spec.group == arl::ParameterGroup::kLocalizer ? params.localizer.validate() :
-                                                                                params.preprocessing.validate();
+      const std::string error = spec.group == arl::ParameterGroup::kLocalizer     ? params.localizer.validate() :
+                                spec.group == arl::ParameterGroup::kRouteFollower ? params.follower.validate() :
+                                                                                    params.preprocessing.validate();
       EXPECT_EQ(0u, error.find(spec.name + " must be in " + spec.rangeText())) << spec.name << " " << value << ": "
                                                                               << error;
     }

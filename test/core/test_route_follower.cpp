@@ -38,13 +38,13 @@ arl::FollowerInput tracking(int keyframe, double confidence, double homing_angle
   return input;
 }
 
-// No filter, no practical rate limit: the command is the target.
+// No filter, no practical rate limit (the most of the working range): the command is the target.
 arl::RouteFollowerParams immediate()
 {
   arl::RouteFollowerParams params;
   params.homing_time_constant_s = 0.0;
-  params.max_linear_accel = 1000.0;
-  params.max_angular_accel = 1000.0;
+  params.max_linear_accel = 100.0;
+  params.max_angular_accel = 100.0;
   return params;
 }
 
@@ -313,14 +313,22 @@ TEST(RouteFollower, RefusesAMapWithoutMotionAndInvalidParameters)
   arl::RouteFollowerParams params;
   params.stop_after_frames = 1;
   params.slow_after_frames = 2;
-  EXPECT_NE(std::string::npos, params.validate().find("stop_after_frames")) << params.validate();
+  EXPECT_EQ("stop_after_frames must be >= slow_after_frames (2), got 1", params.validate());
   EXPECT_THROW((arl::RouteFollower{ { motion(1.0, 0.0) }, params }), std::invalid_argument);
   arl::RouteFollower follower({ motion(1.0, 0.0) });
   arl::RouteFollowerParams negative;
   negative.max_linear_accel = 0.0;
   EXPECT_THROW(follower.setParams(negative), std::invalid_argument);
   EXPECT_CLOSE(0.5, follower.params().max_linear_accel);  // the old ones stay
+  EXPECT_EQ("max_linear_accel must be in 0.001 .. 100 m/s^2, got 0", negative.validate());
   EXPECT_EQ("", arl::RouteFollowerParams().validate());
+  // The ranges are the parameter table's, under the names users give (not the fields' names).
+  arl::RouteFollowerParams fast;
+  fast.max_homing_turn_rps = 10.5;
+  EXPECT_EQ("max_homing_turn_rate must be in 0 .. 10 rad/s, got 10.5", fast.validate());
+  fast.max_homing_turn_rps = 10.0;
+  fast.watchdog_timeout_s = std::nan("");
+  EXPECT_EQ("watchdog_timeout must be in 0.01 .. 60 s, got nan", fast.validate());
 }
 
 TEST(TaughtMotion, KeyframesWithoutARecordTakeTheNearestRecordedOne)

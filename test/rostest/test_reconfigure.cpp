@@ -204,6 +204,7 @@ TEST(Reconfigure, TheCfgFilesAgreeWithTheParameterTable)
   expectCfgAgreesWithTheTable<arl::PreprocessorConfig>(arl::ParameterGroup::kPreprocessor, true);
   expectCfgAgreesWithTheTable<arl::LocalizerConfig>(arl::ParameterGroup::kLocalizer, false);
   expectCfgAgreesWithTheTable<arl::MapRecorderConfig>(arl::ParameterGroup::kMapRecorder, true);
+  expectCfgAgreesWithTheTable<arl::RouteFollowerConfig>(arl::ParameterGroup::kRouteFollower, true);
 }
 
 TEST(Reconfigure, ValuesOutsideTheWorkingRangeAreCorrectedAndBadChoicesKeepThePreviousValue)
@@ -232,6 +233,21 @@ TEST(Reconfigure, ValuesOutsideTheWorkingRangeAreCorrectedAndBadChoicesKeepThePr
   ASSERT_EQ(2u, recorder_corrections.size());
   EXPECT_EQ("every_nth 0 is outside 1 .. 1000 frames; using 1", recorder_corrections[0]);
   EXPECT_EQ("min_distance -1 is outside 0 .. 10000 m; using 0", recorder_corrections[1]);
+
+  // The route follower's, by the table's ranges (its .cfg declares none either).
+  arl::RouteFollowerConfig follower = arl::RouteFollowerConfig::__getDefault__();
+  follower.homing_gain = 25.0;
+  follower.watchdog_timeout = 0.0;
+  follower.slow_after_frames = 4;
+  const std::vector<std::string> follower_corrections =
+      arl::correctToTable(follower, arl::RouteFollowerConfig::__getDefault__());
+  ASSERT_EQ(2u, follower_corrections.size());
+  EXPECT_EQ("homing_gain 25 is outside 0 .. 20 rad/s per rad; using 20", follower_corrections[0]);
+  EXPECT_EQ("watchdog_timeout 0 is outside 0.01 .. 60 s; using 0.01", follower_corrections[1]);
+  EXPECT_DOUBLE_EQ(20.0, follower.homing_gain);
+  EXPECT_DOUBLE_EQ(0.01, follower.watchdog_timeout);
+  EXPECT_EQ(4, follower.slow_after_frames);
+  EXPECT_EQ("", arl::toParams(follower).validate());
 }
 
 TEST(Reconfigure, AReviewListsEachChangeOnceOrRestoresTheLastValidConfig)
