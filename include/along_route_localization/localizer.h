@@ -277,11 +277,11 @@ public:
   /// Frames processed since construction or reset().
   uint64_t frameCount() const { return frames_; }
   /// Median textureEnergy of the map's keyframes, and the featureless threshold derived from it.
-  float medianKeyframeEnergy() const { return median_energy_; }
-  float minTextureEnergy() const { return min_texture_energy_; }
+  float medianKeyframeEnergy() const { return map_stats_.median_energy; }
+  float minTextureEnergy() const { return map_stats_.min_texture_energy; }
   /// Median mean absolute byte difference between consecutive keyframes, and the stationary threshold.
-  float medianKeyframeChange() const { return median_keyframe_change_; }
-  float stationaryChange() const { return stationary_change_; }
+  float medianKeyframeChange() const { return map_stats_.median_change; }
+  float stationaryChange() const { return map_stats_.stationary_change; }
   /// Whether global searches compare halved images on this map (coarse_search_keyframes).
   bool coarseGlobalSearch() const { return coarse_difference_ != nullptr; }
 
@@ -319,7 +319,7 @@ private:
   /// answer moves through the run at the speed the path had when it entered (pathSpeed, run_dead_reckoning).
   int keyframeThroughRun(int dtw_keyframe);
   /// Keyframe k lies in a run of more than one near-identical keyframe (a station, or a featureless stretch).
-  bool inRunOfCopies(int k) const { return run_first_[k] != run_last_[k]; }
+  bool inRunOfCopies(int k) const { return map_stats_.run_first[k] != map_stats_.run_last[k]; }
   /// The motion prior of the match while tracking: the robot is predicted at the last match plus the
   /// speed of the last path (pathSpeed), or at the last match itself when the query repeats the last
   /// view (the camera stood still) outside a run of identical keyframes; then only ends ahead of it pay
@@ -373,18 +373,33 @@ private:
   std::vector<uint8_t> coarse_query_;
   std::vector<uint8_t> keyframe_census_;   // census codes of all keyframes, when that cost is used
   std::vector<uint8_t> query_census_;
-  std::vector<uint8_t> keyframe_informative_;
-  std::vector<uint8_t> keyframe_repeats_;  // [k]: keyframe k shows the view of k - 1 (stationary_change_)
-  std::vector<int> keyframe_run_;          // [k]: number of keyframes up to k that are not repeats
-  std::vector<int> run_first_, run_last_;  // [k]: first and last keyframe of k's run (k itself if alone)
   double run_position_ = -1.0;             // reported position inside the current run; < 0: not in one
   double run_velocity_ = 0.0;              // keyframes per frame when the current run was entered
   ContrastRunsScratch contrast_scratch_;
-  float median_energy_ = 0.0f;             // of the map's keyframes
-  float min_texture_energy_ = 0.0f;        // min_texture_ratio * median_energy_
-  std::vector<float> keyframe_change_;     // [k]: mean |byte difference| of keyframes k - 1 and k ([0] = 0)
-  float median_keyframe_change_ = 0.0f;    // its median
-  float stationary_change_ = 0.0f;         // stationary_ratio * median_keyframe_change_
+  /// What this map is like, measured once per map (measureMap), the keyframes' classes once per
+  /// min_texture_ratio and stationary_ratio (classifyKeyframes), the chance margin once per map and
+  /// sequence settings (chanceMargin).
+  struct MapStatistics
+  {
+    float median_energy = 0.0f;          // of the keyframes' textureEnergy
+    std::vector<float> change;           // [k]: mean |byte difference| of keyframes k - 1 and k ([0] = 0)
+    float median_change = 0.0f;          // its median
+    float texture_ratio = -1.0f;         // the min_texture_ratio and stationary_ratio classified for (-1: none)
+    float stationary_ratio = -1.0f;
+    float min_texture_energy = 0.0f;     // min_texture_ratio * median_energy
+    float stationary_change = 0.0f;      // stationary_ratio * median_change
+    std::vector<uint8_t> informative;    // [k]: keyframe k has texture (min_texture_energy)
+    std::vector<uint8_t> repeats;        // [k]: keyframe k shows the view of the informative one before it
+    std::vector<int> run;                // [k]: number of keyframes up to k that are not repeats
+    std::vector<int> run_first, run_last;  // [k]: first and last keyframe of k's run (k itself if alone)
+    int chance_rows = -1;                // rows chance_margin was measured for (-1: not yet)
+    float chance_margin = 0.0f;
+  };
+  /// The map-only part of map_stats_ (medians, keyframe changes), on construction.
+  void measureMap(bool parallel);
+  /// The keyframes' classes in map_stats_ (informative, repeats, runs), when the ratios changed.
+  void classifyKeyframes();
+  MapStatistics map_stats_;
   CostRingBuffer ring_;
   OnlineDtw dtw_;
 
@@ -419,8 +434,6 @@ private:
   int recent_count_ = 0, recent_next_ = 0;
   bool relocalize_from_recent_ = false;  // set on a loss: the next global search replays recent_queries_
   CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
-  int chance_rows_ = -1;                 // rows chance_margin_ was measured for (-1: not yet)
-  float chance_margin_ = 0.0f;
   bool coasting_ = false;                // weak evidence: answering the dead-reckoned coast_position_
   int contradicting_place_ = -1;         // the place the last trackContradicted found
   GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed

@@ -163,20 +163,7 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
 {
   if (!map_ || map_->empty())
     throw std::invalid_argument("Localizer: the route map is empty");
-  // Properties of the map alone, measured once: what a normal keyframe's texture is, and how much
-  // consecutive keyframes differ while the teach camera moved.
-  std::vector<float> values(map_->size());
-  for (size_t k = 0; k < map_->size(); ++k)
-    values[k] = map_->energy(k);
-  median_energy_ = median(values);
-  const int sky = firstComparedRow();
-  keyframe_change_.assign(map_->size(), 0.0f);
-  forEachKeyframe(map_->size(), params.parallel, [&](int k) {
-    if (k > 0)
-      keyframe_change_[k] =
-          meanAbsoluteDifference(map_->keyframe(k - 1), map_->keyframe(k), map_->width(), map_->height(), sky);
-  });
-  median_keyframe_change_ = median(std::vector<float>(keyframe_change_.begin() + 1, keyframe_change_.end()));
+  measureMap(params.parallel);
   setParams(params);
   const size_t n = map_->size();
   raw_costs_.resize(n);
@@ -226,44 +213,8 @@ void Localizer::setParams(const LocalizerParams& params)
   const int rows = std::max(params_.ring_buffer_rows,
                             params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : 0);
   ring_.resize(rows, static_cast<int>(map_->size()));
-  min_texture_energy_ = params_.min_texture_ratio * median_energy_;
-  stationary_change_ = params_.stationary_ratio * median_keyframe_change_;
-  keyframe_informative_.resize(map_->size());
-  for (size_t k = 0; k < map_->size(); ++k)
-    keyframe_informative_[k] = map_->energy(k) >= min_texture_energy_ ? 1 : 0;
-  // A featureless keyframe shows no view: it neither starts nor ends a run (it joins the run before it).
-  // An informative keyframe repeats the view of the last informative keyframe before it, or not.
-  keyframe_repeats_.assign(map_->size(), 0);
-  const int sky = firstComparedRow();
-  int last_informative = keyframe_informative_[0] ? 0 : -1;
-  for (size_t k = 1; k < map_->size(); ++k)
-  {
-    if (!keyframe_informative_[k])
-    {
-      keyframe_repeats_[k] = 1;
-      continue;
-    }
-    if (last_informative >= 0)
-    {
-      const float change =
-          last_informative == static_cast<int>(k) - 1 ?
-              keyframe_change_[k] :
-              meanAbsoluteDifference(map_->keyframe(last_informative), map_->keyframe(k), map_->width(),
-                                     map_->height(), sky);
-      keyframe_repeats_[k] = change < stationary_change_ ? 1 : 0;
-    }
-    last_informative = static_cast<int>(k);
-  }
-  keyframe_run_.assign(map_->size(), 0);
-  for (size_t k = 1; k < map_->size(); ++k)
-    keyframe_run_[k] = keyframe_run_[k - 1] + (keyframe_repeats_[k] ? 0 : 1);
-  const int n = static_cast<int>(map_->size());
-  run_first_.assign(n, 0);
-  run_last_.assign(n, n - 1);
-  for (int k = 1; k < n; ++k)
-    run_first_[k] = keyframe_run_[k] == keyframe_run_[k - 1] ? run_first_[k - 1] : k;
-  for (int k = n - 2; k >= 0; --k)
-    run_last_[k] = keyframe_run_[k] == keyframe_run_[k + 1] ? run_last_[k + 1] : k;
+  if (params_.min_texture_ratio != map_stats_.texture_ratio || params_.stationary_ratio != map_stats_.stationary_ratio)
+    classifyKeyframes();
   run_position_ = -1.0;
   if (static_cast<int>(recent_queries_.size()) != params_.relocalization_rows)
   {
@@ -274,7 +225,70 @@ void Localizer::setParams(const LocalizerParams& params)
   }
   if (comparators_changed)
     rebuildComparators();
-  chance_rows_ = -1;  // chanceMargin depends on the comparison, eq. 2 and the DTW
+  map_stats_.chance_rows = -1;  // chanceMargin depends on the comparison, eq. 2 and the DTW
+}
+
+void Localizer::measureMap(bool parallel)
+{
+  // Properties of the map alone: what a normal keyframe's texture is, and how much consecutive keyframes
+  // differ while the teach camera moved.
+  MapStatistics& stats = map_stats_;
+  std::vector<float> values(map_->size());
+  for (size_t k = 0; k < map_->size(); ++k)
+    values[k] = map_->energy(k);
+  stats.median_energy = median(values);
+  const int sky = firstComparedRow();
+  stats.change.assign(map_->size(), 0.0f);
+  forEachKeyframe(map_->size(), parallel, [&](int k) {
+    if (k > 0)
+      stats.change[k] =
+          meanAbsoluteDifference(map_->keyframe(k - 1), map_->keyframe(k), map_->width(), map_->height(), sky);
+  });
+  stats.median_change = median(std::vector<float>(stats.change.begin() + 1, stats.change.end()));
+}
+
+void Localizer::classifyKeyframes()
+{
+  MapStatistics& stats = map_stats_;
+  stats.texture_ratio = params_.min_texture_ratio;
+  stats.stationary_ratio = params_.stationary_ratio;
+  stats.min_texture_energy = params_.min_texture_ratio * stats.median_energy;
+  stats.stationary_change = params_.stationary_ratio * stats.median_change;
+  const int n = static_cast<int>(map_->size());
+  stats.informative.resize(n);
+  for (int k = 0; k < n; ++k)
+    stats.informative[k] = map_->energy(k) >= stats.min_texture_energy ? 1 : 0;
+  // A featureless keyframe shows no view: it neither starts nor ends a run (it joins the run before it).
+  // An informative keyframe repeats the view of the last informative keyframe before it, or not.
+  stats.repeats.assign(n, 0);
+  const int sky = firstComparedRow();
+  int last_informative = stats.informative[0] ? 0 : -1;
+  for (int k = 1; k < n; ++k)
+  {
+    if (!stats.informative[k])
+    {
+      stats.repeats[k] = 1;
+      continue;
+    }
+    if (last_informative >= 0)
+    {
+      const float change =
+          last_informative == k - 1 ? stats.change[k] :
+                                      meanAbsoluteDifference(map_->keyframe(last_informative), map_->keyframe(k),
+                                                             map_->width(), map_->height(), sky);
+      stats.repeats[k] = change < stats.stationary_change ? 1 : 0;
+    }
+    last_informative = k;
+  }
+  stats.run.assign(n, 0);
+  for (int k = 1; k < n; ++k)
+    stats.run[k] = stats.run[k - 1] + (stats.repeats[k] ? 0 : 1);
+  stats.run_first.assign(n, 0);
+  stats.run_last.assign(n, n - 1);
+  for (int k = 1; k < n; ++k)
+    stats.run_first[k] = stats.run[k] == stats.run[k - 1] ? stats.run_first[k - 1] : k;
+  for (int k = n - 2; k >= 0; --k)
+    stats.run_last[k] = stats.run[k] == stats.run[k + 1] ? stats.run_last[k + 1] : k;
 }
 
 int Localizer::firstComparedRow() const
@@ -336,14 +350,14 @@ void Localizer::reset()
 
 int Localizer::keyframeThroughRun(int dtw_keyframe)
 {
-  const int first = run_first_[dtw_keyframe], last = run_last_[dtw_keyframe];
+  const int first = map_stats_.run_first[dtw_keyframe], last = map_stats_.run_last[dtw_keyframe];
   if (last == first)
   {
     run_position_ = -1.0;
     return dtw_keyframe;
   }
   const int current = run_position_ < 0.0 ? -1 : static_cast<int>(std::lround(run_position_));
-  if (current >= 0 && run_first_[current] == first)
+  if (current >= 0 && map_stats_.run_first[current] == first)
   {
     run_position_ = std::min(static_cast<double>(last), run_position_ + run_velocity_);
     return static_cast<int>(std::lround(run_position_));
@@ -434,10 +448,10 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
   // A featureless query or keyframe says nothing about where we are: it gets the neutral cost 0 (eq. 2
   // output is zero-mean), so dark stretches neither attract nor repel the path.
   for (int k = 0; k < width; ++k)
-    mask_[k] = query_informative && keyframe_informative_[first + k];
+    mask_[k] = query_informative && map_stats_.informative[first + k];
   float* row = (target ? *target : ring_).appendRow(first, width, repeated_query);
   const float peak = enhanceContrastRuns(
-      costs, mask_.data(), stationary_change_ > 0.0f ? keyframe_repeats_.data() + first : nullptr, width,
+      costs, mask_.data(), map_stats_.stationary_change > 0.0f ? map_stats_.repeats.data() + first : nullptr, width,
       params_.contrast_window, params_.contrast_min_std, params_.contrast_clamp, 0.0f, row, &contrast_scratch_);
   // Step 3a, an extension: a row whose best match stands out counts more (rowWeight). Only a tracking
   // row, whose peak is over the band (2 * search_radius + 1 keyframes): over the whole map the largest of
@@ -476,7 +490,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   const bool in_run = last_match_ >= 0 && inRunOfCopies(last_match_);
   const bool same_view = tick.missed > 0 && !in_run && repeatsLastView(query) &&
                          textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) >=
-                             min_texture_energy_;
+                             map_stats_.min_texture_energy;
   // (FrameClock reports no missed frames when time went back.)
   FrameGap gap = FrameGap::kNone;
   if (tick.missed > 0)
@@ -497,9 +511,9 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
 
 bool Localizer::repeatsLastView(const uint8_t* query) const
 {
-  return query && stationary_change_ > 0.0f && !entered_query_.empty() &&
+  return query && map_stats_.stationary_change > 0.0f && !entered_query_.empty() &&
          meanAbsoluteDifference(query, entered_query_.data, map_->width(), map_->height(), firstComparedRow()) <
-             stationary_change_;
+             map_stats_.stationary_change;
 }
 
 int Localizer::windowRows() const
@@ -544,7 +558,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
   LocalizationResult result;
   const float query_energy =
       query ? textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) : 0.0f;
-  result.query_informative = query && query_energy >= min_texture_energy_;
+  result.query_informative = query && query_energy >= map_stats_.min_texture_energy;
 
   // The query repeats the previous row's view (the camera stood still): flagged for column centering.
   const bool repeated_query = repeatsLastView(query);
@@ -638,7 +652,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
     // every path starts there.
     const bool start_in_window = rows_since_start_ <= std::min(params_.ring_buffer_rows, ring_.size());
     const int path_start = checking_start && start_in_window ? start_match_ : -1;
-    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, !global, keyframe_run_.data(), first_choice,
+    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, !global, map_stats_.run.data(), first_choice,
                        last_choice, prior, path_start);
   }
   last_path_ = match.path;
@@ -834,10 +848,10 @@ bool Localizer::trackContradicted(int track_keyframe, bool go_on)
     replayRecentQueries(std::min(recent_count_, window), &check_ring_);
   }
   const int rows = check_ring_.size();
-  const SequenceMatch elsewhere = dtw_.match(check_ring_, 0, n, rows, false, keyframe_run_.data());
+  const SequenceMatch elsewhere = dtw_.match(check_ring_, 0, n, rows, false, map_stats_.run.data());
   contradicting_place_ = elsewhere.keyframe;
   if (elsewhere.keyframe < 0 ||
-      std::abs(keyframe_run_[elsewhere.keyframe] - keyframe_run_[track_keyframe]) <= params_.dtw.exclusion_radius)
+      std::abs(map_stats_.run[elsewhere.keyframe] - map_stats_.run[track_keyframe]) <= params_.dtw.exclusion_radius)
     return false;  // the sequence still ends at the track's place
   // As a global search confirms a place: its confidence weighed by the distinct views among K rows.
   const double evidence =
@@ -893,8 +907,8 @@ void Localizer::moveTrackTo(int keyframe)
 
 float Localizer::chanceMargin(int rows)
 {
-  if (chance_rows_ == rows)
-    return chance_margin_;
+  if (map_stats_.chance_rows == rows)
+    return map_stats_.chance_margin;
   // Stretches of this map's own keyframes are the queries, and their true places are left out: the
   // cheapest path at a wrong place then beats the track-sized stretch of ends at another wrong place by
   // the chance margin of this map. Sampled at kChanceWindows evenly spaced stretches, the largest kept.
@@ -908,9 +922,9 @@ float Localizer::chanceMargin(int rows)
     const int a = static_cast<int>(static_cast<int64_t>(sample) * (n - rows) / kChanceWindows);
     ring.clear();
     for (int i = 0; i < rows; ++i)
-      computeRow(map_->keyframe(a + i), map_->energy(a + i), keyframe_informative_[a + i] != 0, false, true, 0, n,
+      computeRow(map_->keyframe(a + i), map_->energy(a + i), map_stats_.informative[a + i] != 0, false, true, 0, n,
                  &ring);
-    dtw_.match(ring, 0, n, rows, false, keyframe_run_.data());
+    dtw_.match(ring, 0, n, rows, false, map_stats_.run.data());
     const std::vector<float>& accumulated = dtw_.lastAccumulated();
     const int lo = a - reach, hi = a + rows - 1 + reach;  // the stretch's true place, and what eq. 2 spread of it
     float best_wrong = std::numeric_limits<float>::infinity();
@@ -926,9 +940,9 @@ float Localizer::chanceMargin(int rows)
     if (std::isfinite(best_wrong) && std::isfinite(track_wrong))
       largest = std::max(largest, track_wrong - best_wrong);
   }
-  chance_rows_ = rows;
-  chance_margin_ = largest;
-  return chance_margin_;
+  map_stats_.chance_rows = rows;
+  map_stats_.chance_margin = largest;
+  return map_stats_.chance_margin;
 }
 
 double Localizer::evidenceShare(const SequenceMatch& match) const
@@ -953,14 +967,14 @@ bool Localizer::startRefuted(const SequenceMatch& track, bool informative, Seque
   if (ring_.size() < params_.min_init_frames)
     return false;
   *elsewhere = dtw_.match(ring_, 0, static_cast<int>(map_->size()), params_.ring_buffer_rows, false,
-                          keyframe_run_.data());
+                          map_stats_.run.data());
   const bool confirmable =
       matchConfidence(*elsewhere, true, evidenceShare(*elsewhere)) >= params_.confidence_threshold;
   if (!confirmation_.update(elsewhere->keyframe, confirmable, informative))
     return false;
   confirmation_.clear();
   // Confirmed at the track's place (copies of one view count as one place): the start holds.
-  return std::abs(keyframe_run_[elsewhere->keyframe] - keyframe_run_[track.keyframe]) > params_.dtw.exclusion_radius;
+  return std::abs(map_stats_.run[elsewhere->keyframe] - map_stats_.run[track.keyframe]) > params_.dtw.exclusion_radius;
 }
 
 cv::Mat Localizer::renderDebugImage(int first_keyframe, int width, int scale) const
