@@ -290,8 +290,63 @@ public:
   cv::Mat renderDebugImage(int first_keyframe, int width, int scale = 4) const;
 
 private:
-  /// One frame of process(), or a frame the camera missed (query nullptr: a featureless row, skipFrames).
+  /// The estimator's state (doc/design.md, section 2, has the diagram). Published as status(): kCoasting as
+  /// tracking, a tracked match within end_of_route_keyframes of the map's end as end of route, and a
+  /// coasting frame whose check found another place (trackContradicted) as lost.
+  enum class State
+  {
+    kInitializing,  ///< no place yet: global search until one is confirmed (searchStep)
+    kTracking,      ///< following the route in a band around the last match (trackStep)
+    kCoasting,      ///< tracking on weak evidence: dead-reckoned, each frame checked for another place (coastStep)
+    kLost           ///< the track was lost: global search until a place is confirmed (searchStep)
+  };
+  /// The only change of state_ after start(): enters `next` with what it needs. place >= 0 (kTracking): a
+  /// place was confirmed (global search, startRefuted, the checks while coasting) and a new track starts
+  /// there; -1: the track goes on (coasting ended by a confident frame, the baseline's first answer).
+  void transition(State next, int place = -1);
+  /// The published status of state_ and last_match_.
+  LocalizationStatus status() const;
+
+  /// One frame's inputs and what step() decided on it; lives for one step() only.
+  struct Frame
+  {
+    const uint8_t* query = nullptr;  // nullptr: a frame the camera missed
+    float energy = 0.0f;             // textureEnergy of the query
+    bool informative = false;        // not featureless (min_texture_ratio)
+    bool repeated = false;           // shows the view of the last query (repeatsLastView)
+    bool tracking = false;           // the state was kTracking or kCoasting when the frame came
+    bool global = false;             // its match is searched over the whole map (searching, or the baseline)
+    bool checking_start = false;     // a known start is being checked (its row covers the whole map)
+    bool first_from_start = false;   // the first frame since a known start
+    int first = 0, width = 0;        // keyframes of its row (tracking: the band)
+    int predicted = 0;               // keyframe predicted while tracking: one ahead of the last match
+    bool relocated = false;          // the track moved to another place on this frame (no speed sample)
+    bool contradicted = false;       // coasting, and this frame's check found another place: published lost
+  };
+  /// One frame of process(), or a frame the camera missed (query nullptr: a featureless row, skipFrames):
+  /// the frame's row, its sequence match, the handler of the state it came in, the result.
   LocalizationResult step(const uint8_t* query);
+  /// What the query is (texture, a repeated view) and where its row goes (band, global, the start's check).
+  Frame beginFrame(const uint8_t* query);
+  /// Appends the frame's row to the ring buffer (first the recent queries' after a loss) and keeps the
+  /// query among the recent ones.
+  void appendRow(const Frame& frame);
+  /// The sequence match over the window: the DTW (band or whole map), or the baseline; last_path_ is set.
+  SequenceMatch matchSequence(const Frame& frame);
+  /// While a known start is checked: startRefuted moves the track (and *match) to the confirmed place.
+  void checkStart(Frame* frame, SequenceMatch* match);
+  /// kInitializing, kLost: the global answer, once confirmed, starts a track.
+  void searchStep(const Frame& frame, const SequenceMatch& match, bool confirmable);
+  /// kTracking, kCoasting: loss detection; lost, or coasting (loss_needs_contradiction), or on.
+  void trackStep(Frame* frame, SequenceMatch* match, bool confident);
+  /// kCoasting: the check for another place (trackContradicted), confirmed -> moveTrackTo; else the answer
+  /// is the dead-reckoned coast_position_.
+  void coastStep(Frame* frame, SequenceMatch* match, bool check_started);
+  /// Still tracking after the handler: the cruise speed's sample and the last match.
+  void followTrack(const Frame& frame, int keyframe);
+  /// The result of the frame: keyframe (dead-reckoned while lost), confidence, status, homing.
+  LocalizationResult publish(const Frame& frame, int keyframe, double confidence);
+
   /// The query shows the view of the last one that entered the ring buffer (stationary_ratio): the
   /// camera stood still. False for nullptr.
   bool repeatsLastView(const uint8_t* query) const;
@@ -350,12 +405,12 @@ private:
   /// largest margin seen). trackContradicted needs more than this.
   float chanceMargin(int rows);
   static constexpr int kChanceWindows = 20;
-  /// Status lost from the track at `track_position` (keyframes): the ring buffer is cleared (its rows
+  /// Lost from the track at `track_position` (keyframes): transition(kLost) clears the ring buffer (its rows
   /// covered only the track's band) and the dead-reckoned answer goes on from there at coastSpeed()
   /// (dead_reckon_while_lost). Also for a gap that restarts the search (skipFrames).
   void loseTrack(double track_position);
-  /// The checks while coasting confirmed `keyframe`, another place: the track moves there, the check's
-  /// whole-map rows becoming the ring buffer's.
+  /// The checks while coasting confirmed `keyframe`, another place: the track moves there
+  /// (transition(kTracking, keyframe)), the check's whole-map rows becoming the ring buffer's.
   void moveTrackTo(int keyframe);
   /// Appends to `target` the whole-map rows of the newest `count` (at most recent_count_) recent queries,
   /// oldest first: a global search after a loss, and trackContradicted's check.
@@ -408,7 +463,7 @@ private:
   std::vector<uint8_t> mask_;                          // informative entries of the newest band
   cv::Mat query_copy_;                                 // only for non-continuous input
 
-  LocalizationStatus status_ = LocalizationStatus::kInitializing;
+  State state_ = State::kInitializing;
   int last_match_ = -1;
   int start_match_ = -1;                 // the start keyframe of a known start
   bool start_check_ = false;             // a known start is being checked (startRefuted)
@@ -434,10 +489,9 @@ private:
   int recent_count_ = 0, recent_next_ = 0;
   bool relocalize_from_recent_ = false;  // set on a loss: the next global search replays recent_queries_
   CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
-  bool coasting_ = false;                // weak evidence: answering the dead-reckoned coast_position_
   int contradicting_place_ = -1;         // the place the last trackContradicted found
   GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed
-  double coast_position_ = 0.0;
+  double coast_position_ = 0.0;          // kCoasting: the dead-reckoned keyframe
   int last_confident_ = -1;              // the last confident, informative answer while tracking
   int frames_since_confident_ = 0;
   double lost_position_ = -1.0;          // dead-reckoned keyframe while lost (< 0: none, no track to go on)

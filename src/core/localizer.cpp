@@ -174,17 +174,16 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
 
 void Localizer::start()
 {
-  status_ = LocalizationStatus::kInitializing;
+  state_ = State::kInitializing;  // the initial state: nothing to leave, so not a transition
   last_match_ = -1;
   lost_position_ = -1.0;
-  coasting_ = false;
   last_confident_ = -1;
   frames_since_confident_ = 0;
   start_check_ = false;
   rows_since_start_ = views_since_start_ = 0;
   if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
     return;
-  status_ = LocalizationStatus::kTracking;
+  state_ = State::kTracking;
   last_match_ = start_match_ = params_.start_keyframe;
   start_check_ = true;
 }
@@ -332,7 +331,7 @@ void Localizer::rebuildComparators()
 
 void Localizer::reset()
 {
-  ring_.clear();  // (status_ and last_match_: start())
+  ring_.clear();  // (state_ and last_match_: start())
   confirmation_.clear();
   loss_.clear();
   frames_ = 0;
@@ -532,8 +531,8 @@ void Localizer::skipFrames(int count)
     // which has no such status, initializes again); either way the search starts over from an empty
     // window (the recent frames are from before the gap too).
     if (params_.method == SequenceMethod::kSeqSlam)
-      status_ = LocalizationStatus::kInitializing;
-    else if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
+      transition(State::kInitializing);
+    else if (state_ == State::kTracking || state_ == State::kCoasting)
       loseTrack(std::min<double>(map_->size() - 1, last_match_ + coastSpeed() * count));
     ring_.clear();
     start_check_ = false;
@@ -554,133 +553,22 @@ void Localizer::skipFrames(int count)
 
 LocalizationResult Localizer::step(const uint8_t* query)
 {
-  const int n = static_cast<int>(map_->size());
-  LocalizationResult result;
-  const float query_energy =
-      query ? textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) : 0.0f;
-  result.query_informative = query && query_energy >= map_stats_.min_texture_energy;
-
-  // The query repeats the previous row's view (the camera stood still): flagged for column centering.
-  const bool repeated_query = repeatsLastView(query);
-
-  const bool tracking = last_match_ >= 0 && (status_ == LocalizationStatus::kTracking ||
-                                             status_ == LocalizationStatus::kEndOfRoute);
-  const bool global = params_.method == SequenceMethod::kSeqSlam || !tracking;
-  // A known start (start_keyframe) is checked until K new views have come since it: the rows cover the
-  // whole map, so that a global search over them can refute the start (startRefuted) when the robot was
-  // not there, as soon as a global search would have found the place with the start unknown (a robot
-  // standing still elsewhere is not confirmed there before it moves on, ConfirmsAPlaceOnDistinctViews...).
-  // While the start's own frame is in the window, every path of the track starts at it.
-  const bool checking_start = tracking && params_.method == SequenceMethod::kOnlineDtw && start_check_ &&
-                              views_since_start_ < params_.ring_buffer_rows;
-  const bool first_from_start = start_check_ && rows_since_start_ == 0;  // no frame answered since the start
-  if (start_check_ && !checking_start)
-  {
-    start_check_ = false;  // enough views to go on its own
-    confirmation_.clear();
-  }
-  int first = 0, width = n;
-  // while tracking: one keyframe per frame (the first frame of a known start: the start keyframe)
-  const int predicted = first_from_start ? last_match_ : std::min(n - 1, last_match_ + 1);
-  if (!global)
-  {
-    // The robot moves forward at most max_step keyframes a frame; centre the band one step ahead.
-    first = std::max(0, predicted - params_.search_radius);
-    width = std::min(n, predicted + params_.search_radius + 1) - first;
-  }
-  if (relocalize_from_recent_ && global)
-  {
-    // The first global search after a loss: the frames before this one, over the whole map.
-    // (At most K - 1 of them: the window holds K rows with this frame's.)
-    replayRecentQueries(std::min(recent_count_, params_.ring_buffer_rows - 1), &ring_);
-  }
-  relocalize_from_recent_ = false;
-  if (checking_start)
-  {
-    computeRow(query, query_energy, result.query_informative, repeated_query, true, 0, n);
-    ++rows_since_start_;
-    views_since_start_ += query && result.query_informative && !repeated_query ? 1 : 0;
-  }
-  else
-    computeRow(query, query_energy, result.query_informative, repeated_query, global, first, width);
-  if (!recent_queries_.empty())
-  {
-    RecentQuery& recent = recent_queries_[recent_next_];
-    if (query)  // a missed frame's row is featureless: its image is never read
-      std::copy(query, query + map_->keyframeBytes(), recent.image.begin());
-    recent.energy = query_energy;
-    recent.informative = result.query_informative;
-    recent.repeated = repeated_query;
-    recent_next_ = (recent_next_ + 1) % static_cast<int>(recent_queries_.size());
-    recent_count_ = std::min(recent_count_ + 1, static_cast<int>(recent_queries_.size()));
-  }
-  if (query)
-    cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
-  else if (global)
+  Frame frame = beginFrame(query);
+  appendRow(frame);
+  if (!query && frame.global)
   {
     // A missed frame during a global search: its row is in the window, but matching it over the whole map
     // would cost a global search and say nothing new. It counts as a featureless frame for the
     // confirmation (the robot may have moved on meanwhile).
     confirmation_.update(-1, false, false);
     last_path_.clear();
+    LocalizationResult result;
+    result.query_informative = false;
     return result;
   }
-
-  SequenceMatch match;
-  if (params_.method == SequenceMethod::kSeqSlam)
-    match = seqSlamMatch(ring_, 0, n, params_.seqslam);
-  else
-  {
-    // While tracking, the new match continues from the last one (max_jump_ahead): a step back within the
-    // exclusion radius corrects the answer at the same place (e.g. after running on past a stop); a
-    // cheaper path further back or far ahead is another place, which still counts against the confidence,
-    // so the loss detection and the global search take over if it persists.
-    // (The range always holds `predicted`, last_match_ + 1 at most.)
-    int first_choice = 0, last_choice = n - 1;
-    EndPrior prior;
-    if (!global)
-    {
-      first_choice = last_match_ - params_.dtw.exclusion_radius;
-      last_choice = last_match_ + params_.dtw.max_step + params_.max_jump_ahead;
-      prior = motionPrior(repeated_query);
-    }
-    if (params_.cruise_speed_frames > 0)
-      dtw_.setParams(cruiseSpeedTieBreak(params_.dtw, cruise_speed_));
-    // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
-    // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
-    // A known start while its frame is in the window (the oldest row: the ring was empty at the start):
-    // every path starts there.
-    const bool start_in_window = rows_since_start_ <= std::min(params_.ring_buffer_rows, ring_.size());
-    const int path_start = checking_start && start_in_window ? start_match_ : -1;
-    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, !global, map_stats_.run.data(), first_choice,
-                       last_choice, prior, path_start);
-  }
-  last_path_ = match.path;
-  // A window without evidence (featureless rows only, e.g. a tunnel longer than K frames) ties every
-  // end keyframe: dead-reckon at the nominal speed instead of taking the first of the ties.
-  if (!global && dtw_.lastAccumulated()[predicted - first] <= match.cost)
-    match.keyframe = predicted;
-  if (!global && params_.method == SequenceMethod::kOnlineDtw && params_.run_dead_reckoning)
-    match.keyframe = keyframeThroughRun(match.keyframe);
-  else
-    run_position_ = -1.0;
-  bool left_start = false;  // the global search confirmed another place than the known start's track
-  if (checking_start && !query)
-    confirmation_.update(-1, false, false);  // a missed frame: as in a global search (no search for it)
-  else if (checking_start)
-  {
-    SequenceMatch elsewhere;
-    if (startRefuted(match, result.query_informative, &elsewhere))
-    {
-      match = elsewhere;
-      left_start = true;
-      start_check_ = false;
-      run_position_ = -1.0;
-      last_path_.clear();
-      tracked_frames_ = 0;
-      loss_.clear();
-    }
-  }
+  SequenceMatch match = matchSequence(frame);
+  if (frame.checking_start)
+    checkStart(&frame, &match);
 
   // Confidence: how much cheaper per row the best path is than the best path ending elsewhere. The
   // reported confidence is about the keyframe (a copy of the same view nearby competes) and weighs that
@@ -696,105 +584,248 @@ LocalizationResult Localizer::step(const uint8_t* query)
   // confirmed: Localizer.LeavesTheRouteThenRelocalizes). The loss detection goes by the unweighted
   // confidence: a long track is not lost because the camera stands still.
   const double evidence = evidenceShare(match);
-  result.confidence = matchConfidence(match, false, evidence);
-  result.keyframe = match.keyframe;
-  result.confidence = calibratedConfidence(result.confidence, params_.calibration_offset, params_.calibration_slope);
-
+  const double confidence = calibratedConfidence(matchConfidence(match, false, evidence),
+                                                 params_.calibration_offset, params_.calibration_slope);
   const bool confident = matchConfidence(match, true, 1.0) >= params_.confidence_threshold;
-  bool moved_track = false;         // the checks confirmed another place: the track moved there
-  bool contradicted = false;        // while coasting, this frame's check found another place (published: lost)
   const bool confirmable = matchConfidence(match, true, evidence) >= params_.confidence_threshold;
+
+  // The state machine (doc/design.md, section 2): one handler per state the frame came in.
   if (params_.method == SequenceMethod::kSeqSlam)
   {
-    if (ring_.size() >= params_.min_init_frames)
-      status_ = LocalizationStatus::kTracking;  // the baseline has no notion of being lost
+    if (state_ == State::kInitializing && ring_.size() >= params_.min_init_frames)
+      transition(State::kTracking);  // the baseline has no notion of being lost
   }
-  else if (!tracking)
+  else if (!frame.tracking)
+    searchStep(frame, match, confirmable);
+  else
+    trackStep(&frame, &match, confident);
+  if (state_ == State::kTracking || state_ == State::kCoasting)
+    followTrack(frame, match.keyframe);
+  return publish(frame, match.keyframe, confidence);
+}
+
+Localizer::Frame Localizer::beginFrame(const uint8_t* query)
+{
+  const int n = static_cast<int>(map_->size());
+  Frame frame;
+  frame.query = query;
+  frame.energy = query ? textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) : 0.0f;
+  frame.informative = query && frame.energy >= map_stats_.min_texture_energy;
+  // The query repeats the previous row's view (the camera stood still): flagged for column centering.
+  frame.repeated = repeatsLastView(query);
+  frame.tracking = last_match_ >= 0 && (state_ == State::kTracking || state_ == State::kCoasting);
+  frame.global = params_.method == SequenceMethod::kSeqSlam || !frame.tracking;
+  // A known start (start_keyframe) is checked until K new views have come since it: the rows cover the
+  // whole map, so that a global search over them can refute the start (startRefuted) when the robot was
+  // not there, as soon as a global search would have found the place with the start unknown (a robot
+  // standing still elsewhere is not confirmed there before it moves on, ConfirmsAPlaceOnDistinctViews...).
+  // While the start's own frame is in the window, every path of the track starts at it.
+  frame.checking_start = frame.tracking && params_.method == SequenceMethod::kOnlineDtw && start_check_ &&
+                         views_since_start_ < params_.ring_buffer_rows;
+  frame.first_from_start = start_check_ && rows_since_start_ == 0;  // no frame answered since the start
+  if (start_check_ && !frame.checking_start)
   {
-    if (ring_.size() >= params_.min_init_frames &&
-        confirmation_.update(match.keyframe, confirmable, result.query_informative))
-    {
-      status_ = LocalizationStatus::kTracking;
-      tracked_frames_ = 0;
-      confirmation_.clear();
-      loss_.clear();
-    }
+    start_check_ = false;  // enough views to go on its own
+    confirmation_.clear();
+  }
+  // while tracking: one keyframe per frame (the first frame of a known start: the start keyframe)
+  frame.predicted = frame.first_from_start ? last_match_ : std::min(n - 1, last_match_ + 1);
+  frame.first = 0;
+  frame.width = n;
+  if (!frame.global)
+  {
+    // The robot moves forward at most max_step keyframes a frame; centre the band one step ahead.
+    frame.first = std::max(0, frame.predicted - params_.search_radius);
+    frame.width = std::min(n, frame.predicted + params_.search_radius + 1) - frame.first;
+  }
+  return frame;
+}
+
+void Localizer::appendRow(const Frame& frame)
+{
+  const int n = static_cast<int>(map_->size());
+  const uint8_t* query = frame.query;
+  if (relocalize_from_recent_ && frame.global)
+  {
+    // The first global search after a loss: the frames before this one, over the whole map.
+    // (At most K - 1 of them: the window holds K rows with this frame's.)
+    replayRecentQueries(std::min(recent_count_, params_.ring_buffer_rows - 1), &ring_);
+  }
+  relocalize_from_recent_ = false;
+  if (frame.checking_start)
+  {
+    computeRow(query, frame.energy, frame.informative, frame.repeated, true, 0, n);
+    ++rows_since_start_;
+    views_since_start_ += query && frame.informative && !frame.repeated ? 1 : 0;
   }
   else
+    computeRow(query, frame.energy, frame.informative, frame.repeated, frame.global, frame.first, frame.width);
+  if (!recent_queries_.empty())
   {
-    if (confident && result.query_informative)
+    RecentQuery& recent = recent_queries_[recent_next_];
+    if (query)  // a missed frame's row is featureless: its image is never read
+      std::copy(query, query + map_->keyframeBytes(), recent.image.begin());
+    recent.energy = frame.energy;
+    recent.informative = frame.informative;
+    recent.repeated = frame.repeated;
+    recent_next_ = (recent_next_ + 1) % static_cast<int>(recent_queries_.size());
+    recent_count_ = std::min(recent_count_ + 1, static_cast<int>(recent_queries_.size()));
+  }
+  if (query)
+    cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
+}
+
+SequenceMatch Localizer::matchSequence(const Frame& frame)
+{
+  const int n = static_cast<int>(map_->size());
+  SequenceMatch match;
+  if (params_.method == SequenceMethod::kSeqSlam)
+    match = seqSlamMatch(ring_, 0, n, params_.seqslam);
+  else
+  {
+    // While tracking, the new match continues from the last one (max_jump_ahead): a step back within the
+    // exclusion radius corrects the answer at the same place (e.g. after running on past a stop); a
+    // cheaper path further back or far ahead is another place, which still counts against the confidence,
+    // so the loss detection and the global search take over if it persists.
+    // (The range always holds `predicted`, last_match_ + 1 at most.)
+    int first_choice = 0, last_choice = n - 1;
+    EndPrior prior;
+    if (!frame.global)
     {
-      coasting_ = false;  // evidence again: the DTW's answer
-      last_confident_ = match.keyframe;
-      frames_since_confident_ = 0;
+      first_choice = last_match_ - params_.dtw.exclusion_radius;
+      last_choice = last_match_ + params_.dtw.max_step + params_.max_jump_ahead;
+      prior = motionPrior(frame.repeated);
     }
-    else
-      ++frames_since_confident_;
-    bool check_started = false;
-    if (loss_.update(confident, result.query_informative && !repeated_query))  // new views only
+    if (params_.cruise_speed_frames > 0)
+      dtw_.setParams(cruiseSpeedTieBreak(params_.dtw, cruise_speed_));
+    // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
+    // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
+    // A known start while its frame is in the window (the oldest row: the ring was empty at the start):
+    // every path starts there.
+    const bool start_in_window = rows_since_start_ <= std::min(params_.ring_buffer_rows, ring_.size());
+    const int path_start = frame.checking_start && start_in_window ? start_match_ : -1;
+    match = dtw_.match(ring_, frame.first, frame.width, params_.ring_buffer_rows, !frame.global,
+                       map_stats_.run.data(), first_choice, last_choice, prior, path_start);
+  }
+  last_path_ = match.path;
+  // A window without evidence (featureless rows only, e.g. a tunnel longer than K frames) ties every
+  // end keyframe: dead-reckon at the nominal speed instead of taking the first of the ties.
+  if (!frame.global && dtw_.lastAccumulated()[frame.predicted - frame.first] <= match.cost)
+    match.keyframe = frame.predicted;
+  if (!frame.global && params_.method == SequenceMethod::kOnlineDtw && params_.run_dead_reckoning)
+    match.keyframe = keyframeThroughRun(match.keyframe);
+  else
+    run_position_ = -1.0;
+  return match;
+}
+
+void Localizer::checkStart(Frame* frame, SequenceMatch* match)
+{
+  if (!frame->query)
+  {
+    confirmation_.update(-1, false, false);  // a missed frame: as in a global search (no search for it)
+    return;
+  }
+  SequenceMatch elsewhere;
+  if (!startRefuted(*match, frame->informative, &elsewhere))
+    return;
+  // The global search confirmed another place than the known start's track: the track goes on from there.
+  *match = elsewhere;
+  transition(State::kTracking, elsewhere.keyframe);
+  frame->relocated = true;
+}
+
+void Localizer::searchStep(const Frame& frame, const SequenceMatch& match, bool confirmable)
+{
+  // Initializing or lost: a place is confirmed by init_confirm_frames confirmable answers in a row that
+  // move as the robot can (GlobalConfirmation), from the min_init_frames-th row on.
+  if (ring_.size() >= params_.min_init_frames && confirmation_.update(match.keyframe, confirmable, frame.informative))
+    transition(State::kTracking, match.keyframe);
+}
+
+void Localizer::trackStep(Frame* frame, SequenceMatch* match, bool confident)
+{
+  if (confident && frame->informative)
+  {
+    if (state_ == State::kCoasting)
+      transition(State::kTracking);  // evidence again: the DTW's answer
+    last_confident_ = match->keyframe;
+    frames_since_confident_ = 0;
+  }
+  else
+    ++frames_since_confident_;
+  bool check_started = false;
+  if (loss_.update(confident, frame->informative && !frame->repeated))  // new views only
+  {
+    if (!params_.loss_needs_contradiction || last_confident_ < 0)
+      loseTrack(match->keyframe);
+    else if (state_ == State::kTracking)
     {
-      if (!params_.loss_needs_contradiction || last_confident_ < 0)
-        loseTrack(match.keyframe);
-      else if (!coasting_)
-      {
-        // Weak evidence so far: the robot moved on at its cruise speed since the last confident answer,
-        // and the frames are compared with the whole map from now on (trackContradicted).
-        coasting_ = true;
-        check_started = true;
-        check_confirmation_.clear();
-        coast_position_ = last_confident_ + coastSpeed() * (frames_since_confident_ - 1);
-      }
-      loss_.clear();  // the detection counts afresh
+      // Weak evidence so far: the robot moved on at its cruise speed since the last confident answer,
+      // and the frames are compared with the whole map from now on (trackContradicted).
+      transition(State::kCoasting);
+      check_started = true;
     }
-    if (coasting_ && query)
+    loss_.clear();  // the detection counts afresh
+  }
+  if (state_ == State::kCoasting)
+    coastStep(frame, match, check_started);
+}
+
+void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started)
+{
+  if (frame->query)
+  {
+    // Each frame may bring the evidence of another place; the track moves there once init_confirm_frames
+    // checks in a row were contradicted by places that move along the route like the robot can (a
+    // single check's winner is a wrong place now and then).
+    frame->contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), !check_started);
+    if (check_confirmation_.update(frame->contradicted ? contradicting_place_ : -1, frame->contradicted,
+                                   frame->informative))
     {
-      // Each frame may bring the evidence of another place; the track moves there once init_confirm_frames
-      // checks in a row were contradicted by places that move along the route like the robot can (a
-      // single check's winner is a wrong place now and then).
-      contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), !check_started);
-      if (check_confirmation_.update(contradicted ? contradicting_place_ : -1, contradicted,
-                                     result.query_informative))
-      {
-        moveTrackTo(contradicting_place_);
-        match.keyframe = contradicting_place_;
-        result.keyframe = contradicting_place_;
-        moved_track = true;
-        contradicted = false;
-      }
-    }
-    if (coasting_)
-    {
-      // A query that repeats the last view: the camera stood still, and so does the dead reckoning.
-      if (!repeated_query)
-        coast_position_ = std::min(static_cast<double>(n - 1), coast_position_ + coastSpeed());
-      match.keyframe = static_cast<int>(std::lround(coast_position_));
-      // Contradicted (published lost): the place that contradicts, unless dead_reckon_while_lost.
-      result.keyframe = contradicted && !params_.dead_reckon_while_lost ? contradicting_place_ : match.keyframe;
-      run_position_ = -1.0;
+      moveTrackTo(contradicting_place_);
+      match->keyframe = contradicting_place_;
+      frame->relocated = true;
+      frame->contradicted = false;
+      return;
     }
   }
-  if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
+  // A query that repeats the last view: the camera stood still, and so does the dead reckoning.
+  if (!frame->repeated)
+    coast_position_ = std::min(static_cast<double>(map_->size() - 1), coast_position_ + coastSpeed());
+  match->keyframe = static_cast<int>(std::lround(coast_position_));
+  run_position_ = -1.0;
+}
+
+void Localizer::followTrack(const Frame& frame, int keyframe)
+{
+  // The cruise speed: the steps of a track followed from one informative frame to the next (a
+  // relocalization's jump is not a step; a featureless frame's answer is dead reckoning). Their mean,
+  // with the nominal speed as the first sample, until cruise_speed_frames samples; then a moving
+  // average over that many.
+  if (frame.tracking && !frame.first_from_start && !frame.relocated && frame.informative &&
+      params_.cruise_speed_frames > 0)
   {
-    // The cruise speed: the steps of a track followed from one informative frame to the next (a
-    // relocalization's jump is not a step; a featureless frame's answer is dead reckoning). Their mean,
-    // with the nominal speed as the first sample, until cruise_speed_frames samples; then a moving
-    // average over that many.
-    if (tracking && !first_from_start && !left_start && !moved_track && result.query_informative &&
-        params_.cruise_speed_frames > 0)
-    {
-      const double step = std::min(std::max(match.keyframe - last_match_, 0), params_.dtw.max_step);
-      cruise_samples_ = std::min(cruise_samples_ + 1, params_.cruise_speed_frames);
-      cruise_speed_ += (step - cruise_speed_) / cruise_samples_;
-    }
-    ++tracked_frames_;
-    last_match_ = match.keyframe;
-    status_ = match.keyframe >= n - 1 - params_.end_of_route_keyframes ? LocalizationStatus::kEndOfRoute :
-                                                                          LocalizationStatus::kTracking;
+    const double step = std::min(std::max(keyframe - last_match_, 0), params_.dtw.max_step);
+    cruise_samples_ = std::min(cruise_samples_ + 1, params_.cruise_speed_frames);
+    cruise_speed_ += (step - cruise_speed_) / cruise_samples_;
   }
+  ++tracked_frames_;
+  last_match_ = keyframe;
+}
+
+LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double confidence)
+{
+  const int n = static_cast<int>(map_->size());
+  LocalizationResult result;
+  result.query_informative = frame.informative;
+  result.confidence = confidence;
+  // Contradicted (published lost): the place that contradicts, unless dead_reckon_while_lost.
+  result.keyframe = frame.contradicted && !params_.dead_reckon_while_lost ? contradicting_place_ : keyframe;
   // Lost: confidence 0 until the global search confirms a place (the frame that confirms it answers there);
   // the answer is the global search's guess, or (dead_reckon_while_lost) where the robot went at the
   // cruise speed since the loss.
-  if (status_ == LocalizationStatus::kLost || contradicted)
+  if (state_ == State::kLost || frame.contradicted)
   {
     result.confidence = 0.0;  // contradicted, or unconfirmed: no chance worth a number
     if (lost_position_ >= 0.0 && params_.dead_reckon_while_lost)
@@ -803,15 +834,67 @@ LocalizationResult Localizer::step(const uint8_t* query)
       result.keyframe = static_cast<int>(std::lround(lost_position_));
     }
   }
-  result.status = contradicted ? LocalizationStatus::kLost : status_;  // lost: contradicted, not unconfirmed
+  result.status = frame.contradicted ? LocalizationStatus::kLost : status();  // lost: contradicted, not unconfirmed
   if (result.keyframe >= 0)
   {
     result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
     if (result.query_informative)  // the homing estimate (homing.h); a featureless query reports none
-      result.shift_px = homing_->estimate(query, map_->keyframe(result.keyframe)).shift_px;
+      result.shift_px = homing_->estimate(frame.query, map_->keyframe(result.keyframe)).shift_px;
     result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
   }
   return result;
+}
+
+LocalizationStatus Localizer::status() const
+{
+  switch (state_)
+  {
+    case State::kInitializing:
+      return LocalizationStatus::kInitializing;
+    case State::kLost:
+      return LocalizationStatus::kLost;
+    case State::kTracking:
+    case State::kCoasting:
+      break;
+  }
+  return last_match_ >= static_cast<int>(map_->size()) - 1 - params_.end_of_route_keyframes ?
+             LocalizationStatus::kEndOfRoute :
+             LocalizationStatus::kTracking;
+}
+
+void Localizer::transition(State next, int place)
+{
+  // Every change of state_ but the initial one (start()) comes here; what each state needs on entry:
+  state_ = next;
+  switch (next)
+  {
+    case State::kInitializing:  // the baseline after a gap (skipFrames, which clears the window)
+      break;
+    case State::kTracking:
+      if (place < 0)
+        break;  // coasting ended by a confident frame, or the baseline's first answer: the track goes on
+      // A place confirmed (a global search, the start's check, the checks while coasting): a new track.
+      last_match_ = place;
+      last_path_.clear();
+      run_position_ = -1.0;
+      tracked_frames_ = 0;
+      start_check_ = false;
+      confirmation_.clear();
+      check_confirmation_.clear();
+      loss_.clear();
+      break;
+    case State::kCoasting:
+      // Weak evidence: dead reckoning at the cruise speed from the last confident answer.
+      check_confirmation_.clear();
+      coast_position_ = last_confident_ + coastSpeed() * (frames_since_confident_ - 1);
+      break;
+    case State::kLost:
+      ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
+      start_check_ = false;
+      confirmation_.clear();
+      relocalize_from_recent_ = true;
+      break;
+  }
 }
 
 double Localizer::coastSpeed() const
@@ -821,13 +904,8 @@ double Localizer::coastSpeed() const
 
 void Localizer::loseTrack(double track_position)
 {
-  coasting_ = false;
-  status_ = LocalizationStatus::kLost;
-  ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
-  start_check_ = false;
-  confirmation_.clear();
-  relocalize_from_recent_ = true;
   lost_position_ = track_position;
+  transition(State::kLost);
 }
 
 bool Localizer::trackContradicted(int track_keyframe, bool go_on)
@@ -895,14 +973,8 @@ void Localizer::moveTrackTo(int keyframe)
     for (int k = 0; k < n; ++k)
       row[k] = check_ring_.at(age, k, 0.0f);
   }
-  last_match_ = keyframe;
-  last_path_.clear();
-  run_position_ = -1.0;
-  tracked_frames_ = 0;
-  coasting_ = false;
   last_confident_ = -1;
-  check_confirmation_.clear();
-  loss_.clear();
+  transition(State::kTracking, keyframe);
 }
 
 float Localizer::chanceMargin(int rows)
@@ -984,7 +1056,7 @@ cv::Mat Localizer::renderDebugImage(int first_keyframe, int width, int scale) co
   content.keyframes = std::max(1, width);
   content.path = last_path_;
   content.match_keyframe = last_match_;
-  content.status = toString(status_);
+  content.status = toString(status());
   content.cost_clamp = params_.contrast_clamp;
   content.cell_px = std::max(1, scale);
   cv::Mat image;
