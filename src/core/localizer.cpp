@@ -342,7 +342,6 @@ void Localizer::reset()
   cruise_speed_ = 1.0;
   cruise_samples_ = 1;
   recent_count_ = recent_next_ = 0;
-  relocalize_from_recent_ = false;
   clock_.forgetLastStamp();
   start();
 }
@@ -541,7 +540,6 @@ void Localizer::skipFrames(int count)
     last_path_.clear();
     run_position_ = -1.0;
     recent_count_ = recent_next_ = 0;
-    relocalize_from_recent_ = false;
     return;
   }
   // Each missed frame is a row without evidence, as a featureless frame is: the DTW paths go on through
@@ -645,13 +643,12 @@ void Localizer::appendRow(const Frame& frame)
 {
   const int n = static_cast<int>(map_->size());
   const uint8_t* query = frame.query;
-  if (relocalize_from_recent_ && frame.global)
+  if (state_ == State::kLost && ring_.size() == 0)
   {
-    // The first global search after a loss: the frames before this one, over the whole map.
-    // (At most K - 1 of them: the window holds K rows with this frame's.)
+    // The first global search after a loss (which cleared the window): the frames before this one, over
+    // the whole map. (At most K - 1 of them: the window holds K rows with this frame's.)
     replayRecentQueries(std::min(recent_count_, params_.ring_buffer_rows - 1), &ring_);
   }
-  relocalize_from_recent_ = false;
   if (frame.checking_start)
   {
     computeRow(query, frame.energy, frame.informative, frame.repeated, true, 0, n);
@@ -892,7 +889,6 @@ void Localizer::transition(State next, int place)
       ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
       start_check_ = false;
       confirmation_.clear();
-      relocalize_from_recent_ = true;
       break;
   }
 }
