@@ -870,8 +870,12 @@ void Localizer::transition(State next, int place)
     case State::kTracking:
       if (place < 0)
         break;  // coasting ended by a confident frame, or the baseline's first answer: the track goes on
-      // A place confirmed (a global search, the start's check, the checks while coasting): a new track.
+      // A place confirmed (a global search, the start's check, the checks while coasting): a new track,
+      // which owes nothing to an old one's answers (its last confident one, its dead reckoning while lost).
       last_match_ = place;
+      last_confident_ = -1;
+      frames_since_confident_ = 0;
+      lost_position_ = -1.0;
       last_path_.clear();
       run_position_ = -1.0;
       tracked_frames_ = 0;
@@ -969,7 +973,6 @@ void Localizer::moveTrackTo(int keyframe)
     for (int k = 0; k < n; ++k)
       row[k] = check_ring_.at(age, k, 0.0f);
   }
-  last_confident_ = -1;
   transition(State::kTracking, keyframe);
 }
 

@@ -1862,3 +1862,37 @@ TEST(LocalizerStates, WithLossNeedsContradictionOnlyContraryEvidenceMovesTheTrac
     EXPECT_EQ(std::string(marks.size() - moved, 'T'), marks.substr(moved)) << "the moved track holds";
   }
 }
+
+TEST(LocalizerStates, ANewTrackForgetsTheLostOnesDeadReckoning)
+{
+  // Regression: a loss left its dead-reckoned position set, and a track confirmed later published it,
+  // moved on, when a check while coasting found another place (lost, dead_reckon_while_lost): 35 keyframes
+  // behind the robot here. K = 10, loss_needs_contradiction, dead_reckon_while_lost. Keyframes 0..30, a gap
+  // of 9 missed frames (lost at about keyframe 39, the window emptied), keyframes 60..68 (tracking again
+  // from the 9th, LostTrackingResumes... above), then 20 frames resembling nothing while the robot drives
+  // on at one keyframe per frame. (K = 10 rows of such frames still find the route now and then: the
+  // tracked answers are not checked here.) Every lost answer is the new track dead-reckoned.
+  const auto map = syntheticMap(150);
+  arl::LocalizerParams params;
+  params.ring_buffer_rows = 10;
+  params.loss_needs_contradiction = true;
+  params.dead_reckon_while_lost = true;
+  arl::Localizer localizer(map, params);
+  ASSERT_EQ(30, driveAtTenHz(localizer, *map, 0, 30).keyframe);
+  arl::LocalizationResult r;
+  for (int j = 1; j <= 9; ++j)
+    r = localizer.process(keyframeCopy(*map, 59 + j), (40 + j) * kTenHz);
+  ASSERT_EQ(LocalizationStatus::kTracking, r.status);
+  ASSERT_EQ(68, r.keyframe);
+  int lost = 0;
+  for (int f = 0; f < 20; ++f)
+  {
+    r = localizer.process(randomFrame(70000 + f), (50 + f) * kTenHz);
+    if (r.status != LocalizationStatus::kLost)
+      continue;
+    ++lost;
+    EXPECT_EQ(0.0, r.confidence);
+    EXPECT_LE(std::abs(r.keyframe - (69 + f)), 1) << "frame " << f << " of the fog";  // measured: 1 off
+  }
+  EXPECT_GT(lost, 0) << "the case this test is about did not happen";  // measured: 2 (fog frames 14, 15)
+}
