@@ -32,6 +32,12 @@ struct HomingParams
   /// 1 = every overlapping column. Share in (0, 1].
   double kept_column_share = 1.0;
   SubpixelFit subpixel_fit = SubpixelFit::kEquiangular;
+  /// Geman-McClure column costs: each column's cost c counts as c^2 / (c^2 + s^2), s the median of the
+  /// column costs of this pair over every shift (its typical mismatch, no parameter to tune), so a column
+  /// that matches nowhere (changed content) adds at most 1 at every shift instead of its full cost, while
+  /// columns that match well weigh as their squared cost. False: c counts as is. Default: what
+  /// leave-one-place-out chooses on the Stromovka pairs (doc/results.md, Homing).
+  bool robust_column_cost = true;
 
   /// Empty when valid for images of `width` px and `rows` compared rows, otherwise a sentence naming the
   /// invalid field.
@@ -57,6 +63,8 @@ struct HomingEstimate
 /// trimmed mean over the columns that overlap at d (so the whole width counts, and wide shifts are not
 /// favoured for comparing fewer columns). The best d is refined to subpixel from its cost and its two
 /// neighbours' (subpixel_fit; ties go to the smallest |d|: no evidence of a turn, none reported).
+/// With robust_column_cost, each column cost c is first replaced by c^2 / (c^2 + s^2), s the median
+/// column cost of the pair over all shifts (HomingParams::robust_column_cost).
 /// Cost: (2m + 1) * (2V + 1) * width * (height - first_row) byte differences at most per estimate, no
 /// allocation.
 class HomingEstimator
@@ -80,7 +88,8 @@ private:
   int width_, height_, first_row_;
   HomingParams params_;
   std::vector<uint32_t> column_sums_;  // scratch: one shift's column sums at one vertical offset
-  std::vector<float> column_costs_;   // scratch: one shift's column costs
+  std::vector<float> column_costs_;   // scratch: every shift's column costs, (2m + 1) rows of width
+  std::vector<float> sorted_costs_;   // scratch: their copy for the median (robust_column_cost)
   std::vector<double> costs_;           // scratch: the cost per shift
 };
 

@@ -277,11 +277,11 @@ public:
   /// Frames processed since construction or reset().
   uint64_t frameCount() const { return frames_; }
   /// Median textureEnergy of the map's keyframes, and the featureless threshold derived from it.
-  float medianKeyframeEnergy() const { return median_energy_; }
-  float minTextureEnergy() const { return min_texture_energy_; }
+  float medianKeyframeEnergy() const { return map_stats_.median_energy; }
+  float minTextureEnergy() const { return map_stats_.min_texture_energy; }
   /// Median mean absolute byte difference between consecutive keyframes, and the stationary threshold.
-  float medianKeyframeChange() const { return median_keyframe_change_; }
-  float stationaryChange() const { return stationary_change_; }
+  float medianKeyframeChange() const { return map_stats_.median_change; }
+  float stationaryChange() const { return map_stats_.stationary_change; }
   /// Whether global searches compare halved images on this map (coarse_search_keyframes).
   bool coarseGlobalSearch() const { return coarse_difference_ != nullptr; }
 
@@ -290,8 +290,63 @@ public:
   cv::Mat renderDebugImage(int first_keyframe, int width, int scale = 4) const;
 
 private:
-  /// One frame of process(), or a frame the camera missed (query nullptr: a featureless row, skipFrames).
+  /// The estimator's state (doc/design.md, section 2, has the diagram). Published as status(): kCoasting as
+  /// tracking, a tracked match within end_of_route_keyframes of the map's end as end of route, and a
+  /// coasting frame whose check found another place (trackContradicted) as lost.
+  enum class State
+  {
+    kInitializing,  ///< no place yet: global search until one is confirmed (searchStep)
+    kTracking,      ///< following the route in a band around the last match (trackStep)
+    kCoasting,      ///< tracking on weak evidence: dead-reckoned, each frame checked for another place (coastStep)
+    kLost           ///< the track was lost: global search until a place is confirmed (searchStep)
+  };
+  /// The only change of state_ after start(): enters `next` with what it needs. place >= 0 (kTracking): a
+  /// place was confirmed (global search, startRefuted, the checks while coasting) and a new track starts
+  /// there; -1: the track goes on (coasting ended by a confident frame, the baseline's first answer).
+  void transition(State next, int place = -1);
+  /// The published status of state_ and last_match_.
+  LocalizationStatus status() const;
+
+  /// One frame's inputs and what step() decided on it; lives for one step() only.
+  struct Frame
+  {
+    const uint8_t* query = nullptr;  // nullptr: a frame the camera missed
+    float energy = 0.0f;             // textureEnergy of the query
+    bool informative = false;        // not featureless (min_texture_ratio)
+    bool repeated = false;           // shows the view of the last query (repeatsLastView)
+    bool tracking = false;           // the state was kTracking or kCoasting when the frame came
+    bool global = false;             // its match is searched over the whole map (searching, or the baseline)
+    bool checking_start = false;     // a known start is being checked (its row covers the whole map)
+    bool first_from_start = false;   // the first frame since a known start
+    int first = 0, width = 0;        // keyframes of its row (tracking: the band)
+    int predicted = 0;               // keyframe predicted while tracking: one ahead of the last match
+    bool relocated = false;          // the track moved to another place on this frame (no speed sample)
+    bool contradicted = false;       // coasting, and this frame's check found another place: published lost
+  };
+  /// One frame of process(), or a frame the camera missed (query nullptr: a featureless row, skipFrames):
+  /// the frame's row, its sequence match, the handler of the state it came in, the result.
   LocalizationResult step(const uint8_t* query);
+  /// What the query is (texture, a repeated view) and where its row goes (band, global, the start's check).
+  Frame beginFrame(const uint8_t* query);
+  /// Appends the frame's row to the ring buffer (first the recent queries' after a loss) and keeps the
+  /// query among the recent ones.
+  void appendRow(const Frame& frame);
+  /// The sequence match over the window: the DTW (band or whole map), or the baseline; last_path_ is set.
+  SequenceMatch matchSequence(const Frame& frame);
+  /// While a known start is checked: startRefuted moves the track (and *match) to the confirmed place.
+  void checkStart(Frame* frame, SequenceMatch* match);
+  /// kInitializing, kLost: the global answer, once confirmed, starts a track.
+  void searchStep(const Frame& frame, const SequenceMatch& match, bool confirmable);
+  /// kTracking, kCoasting: loss detection; lost, or coasting (loss_needs_contradiction), or on.
+  void trackStep(Frame* frame, SequenceMatch* match, bool confident);
+  /// kCoasting: the check for another place (trackContradicted), confirmed -> moveTrackTo; else the answer
+  /// is the dead-reckoned coast_position_.
+  void coastStep(Frame* frame, SequenceMatch* match, bool check_started);
+  /// Still tracking after the handler: the cruise speed's sample and the last match.
+  void followTrack(const Frame& frame, int keyframe);
+  /// The result of the frame: keyframe (dead-reckoned while lost), confidence, status, homing.
+  LocalizationResult publish(const Frame& frame, int keyframe, double confidence);
+
   /// The query shows the view of the last one that entered the ring buffer (stationary_ratio): the
   /// camera stood still. False for nullptr.
   bool repeatsLastView(const uint8_t* query) const;
@@ -319,7 +374,7 @@ private:
   /// answer moves through the run at the speed the path had when it entered (pathSpeed, run_dead_reckoning).
   int keyframeThroughRun(int dtw_keyframe);
   /// Keyframe k lies in a run of more than one near-identical keyframe (a station, or a featureless stretch).
-  bool inRunOfCopies(int k) const { return run_first_[k] != run_last_[k]; }
+  bool inRunOfCopies(int k) const { return map_stats_.run_first[k] != map_stats_.run_last[k]; }
   /// The motion prior of the match while tracking: the robot is predicted at the last match plus the
   /// speed of the last path (pathSpeed), or at the last match itself when the query repeats the last
   /// view (the camera stood still) outside a run of identical keyframes; then only ends ahead of it pay
@@ -349,12 +404,12 @@ private:
   /// largest margin seen). trackContradicted needs more than this.
   float chanceMargin(int rows);
   static constexpr int kChanceWindows = 20;
-  /// Status lost from the track at `track_position` (keyframes): the ring buffer is cleared (its rows
+  /// Lost from the track at `track_position` (keyframes): transition(kLost) clears the ring buffer (its rows
   /// covered only the track's band) and the dead-reckoned answer goes on from there at coastSpeed()
   /// (dead_reckon_while_lost). Also for a gap that restarts the search (skipFrames).
   void loseTrack(double track_position);
-  /// The checks while coasting confirmed `keyframe`, another place: the track moves there, the check's
-  /// whole-map rows becoming the ring buffer's.
+  /// The checks while coasting confirmed `keyframe`, another place: the track moves there
+  /// (transition(kTracking, keyframe)), the check's whole-map rows becoming the ring buffer's.
   void moveTrackTo(int keyframe);
   /// Appends to `target` the whole-map rows of the newest `count` (at most recent_count_) recent queries,
   /// oldest first: a global search after a loss, and trackContradicted's check.
@@ -375,19 +430,34 @@ private:
   std::vector<uint8_t> coarse_query_;
   std::vector<uint8_t> keyframe_census_;   // census codes of all keyframes, when that cost is used
   std::vector<uint8_t> query_census_;
-  std::vector<uint8_t> keyframe_informative_;
-  std::vector<uint8_t> keyframe_repeats_;  // [k]: keyframe k shows the view of k - 1 (stationary_change_)
-  std::vector<int> keyframe_run_;          // [k]: number of keyframes up to k that are not repeats
-  std::vector<int> run_first_, run_last_;  // [k]: first and last keyframe of k's run (k itself if alone)
-  double reckon_position_ = -1.0;         // dead-reckoned position while the window ties; < 0: not
+  double reckon_position_ = -1.0;          // dead-reckoned position while the window ties; < 0: not
   double run_position_ = -1.0;             // reported position inside the current run; < 0: not in one
   double run_velocity_ = 0.0;              // keyframes per frame when the current run was entered
   ContrastRunsScratch contrast_scratch_;
-  float median_energy_ = 0.0f;             // of the map's keyframes
-  float min_texture_energy_ = 0.0f;        // min_texture_ratio * median_energy_
-  std::vector<float> keyframe_change_;     // [k]: mean |byte difference| of keyframes k - 1 and k ([0] = 0)
-  float median_keyframe_change_ = 0.0f;    // its median
-  float stationary_change_ = 0.0f;         // stationary_ratio * median_keyframe_change_
+  /// What this map is like, measured once per map (measureMap), the keyframes' classes once per
+  /// min_texture_ratio and stationary_ratio (classifyKeyframes), the chance margin once per map and
+  /// sequence settings (chanceMargin).
+  struct MapStatistics
+  {
+    float median_energy = 0.0f;          // of the keyframes' textureEnergy
+    std::vector<float> change;           // [k]: mean |byte difference| of keyframes k - 1 and k ([0] = 0)
+    float median_change = 0.0f;          // its median
+    float texture_ratio = -1.0f;         // the min_texture_ratio and stationary_ratio classified for (-1: none)
+    float stationary_ratio = -1.0f;
+    float min_texture_energy = 0.0f;     // min_texture_ratio * median_energy
+    float stationary_change = 0.0f;      // stationary_ratio * median_change
+    std::vector<uint8_t> informative;    // [k]: keyframe k has texture (min_texture_energy)
+    std::vector<uint8_t> repeats;        // [k]: keyframe k shows the view of the informative one before it
+    std::vector<int> run;                // [k]: number of keyframes up to k that are not repeats
+    std::vector<int> run_first, run_last;  // [k]: first and last keyframe of k's run (k itself if alone)
+    int chance_rows = -1;                // rows chance_margin was measured for (-1: not yet)
+    float chance_margin = 0.0f;
+  };
+  /// The map-only part of map_stats_ (medians, keyframe changes), on construction.
+  void measureMap(bool parallel);
+  /// The keyframes' classes in map_stats_ (informative, repeats, runs), when the ratios changed.
+  void classifyKeyframes();
+  MapStatistics map_stats_;
   CostRingBuffer ring_;
   OnlineDtw dtw_;
 
@@ -396,7 +466,7 @@ private:
   std::vector<uint8_t> mask_;                          // informative entries of the newest band
   cv::Mat query_copy_;                                 // only for non-continuous input
 
-  LocalizationStatus status_ = LocalizationStatus::kInitializing;
+  State state_ = State::kInitializing;
   int last_match_ = -1;
   int start_match_ = -1;                 // the start keyframe of a known start
   bool start_check_ = false;             // a known start is being checked (startRefuted)
@@ -420,14 +490,10 @@ private:
   };
   std::vector<RecentQuery> recent_queries_;
   int recent_count_ = 0, recent_next_ = 0;
-  bool relocalize_from_recent_ = false;  // set on a loss: the next global search replays recent_queries_
   CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
-  int chance_rows_ = -1;                 // rows chance_margin_ was measured for (-1: not yet)
-  float chance_margin_ = 0.0f;
-  bool coasting_ = false;                // weak evidence: answering the dead-reckoned coast_position_
   int contradicting_place_ = -1;         // the place the last trackContradicted found
   GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed
-  double coast_position_ = 0.0;
+  double coast_position_ = 0.0;          // kCoasting: the dead-reckoned keyframe
   int last_confident_ = -1;              // the last confident, informative answer while tracking
   int frames_since_confident_ = 0;
   double lost_position_ = -1.0;          // dead-reckoned keyframe while lost (< 0: none, no track to go on)

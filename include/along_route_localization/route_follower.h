@@ -39,7 +39,7 @@ std::vector<TaughtMotion> completeTaughtMotion(const std::map<int, TaughtMotion>
 /// kRouteFollower); the defaults are these initializers.
 struct RouteFollowerParams
 {
-  double homing_gain = 1.0;             ///< rad/s of turn per rad of homing angle
+  double homing_gain = 3.0;             ///< rad/s of turn per rad of homing angle
   double max_homing_turn_rps = 0.5;     ///< bound of the homing term |gain x angle|, rad/s
   double homing_time_constant_s = 0.3;  ///< first-order low-pass of the homing angle, s (0 = none)
   double speed_factor = 1.0;            ///< forward speed = taught speed x this (and the taught turn rate too)

@@ -76,19 +76,23 @@ HomingEstimator::HomingEstimator(int width, int height, int first_row, const Hom
   if (!invalid.empty())
     throw std::invalid_argument("HomingEstimator: " + invalid);
   column_sums_.resize(static_cast<size_t>(width));
-  column_costs_.resize(static_cast<size_t>(width));
+  column_costs_.resize(static_cast<size_t>(2 * params.max_shift_px + 1) * width);
+  if (params.robust_column_cost)
+    sorted_costs_.resize(column_costs_.size());
   costs_.resize(static_cast<size_t>(2 * params.max_shift_px + 1));
 }
 
 const std::vector<double>& HomingEstimator::costs(const uint8_t* query, const uint8_t* keyframe)
 {
   const int m = params_.max_shift_px, vertical = params_.max_vertical_shift_px;
+  size_t all_columns = 0;
   for (int d = -m; d <= m; ++d)
   {
     // Query columns [begin, end) have a keyframe column x - d.
     const int begin = std::max(0, d), end = std::min(width_, width_ + d);
     const int columns = end - begin;
-    std::fill(column_costs_.begin(), column_costs_.begin() + columns, std::numeric_limits<float>::infinity());
+    float* column_cost = column_costs_.data() + static_cast<size_t>(d + m) * width_;
+    std::fill(column_cost, column_cost + columns, std::numeric_limits<float>::infinity());
     for (int v = -vertical; v <= vertical; ++v)
     {
       // Query rows [first, last) have a keyframe row y - v below the sky.
@@ -98,15 +102,39 @@ const std::vector<double>& HomingEstimator::costs(const uint8_t* query, const ui
                  last - first, columns, column_sums_.data());
       const float rows = static_cast<float>(last - first);
       for (int i = 0; i < columns; ++i)
-        column_costs_[i] = std::min(column_costs_[i], static_cast<float>(column_sums_[i]) / rows);
+        column_cost[i] = std::min(column_cost[i], static_cast<float>(column_sums_[i]) / rows);
     }
+    if (params_.robust_column_cost)
+    {
+      std::copy(column_cost, column_cost + columns, sorted_costs_.begin() + all_columns);
+      all_columns += static_cast<size_t>(columns);
+    }
+  }
+  float scale_squared = 0.0f;
+  if (params_.robust_column_cost)
+  {
+    // The median of all column costs (the mean of the two middle ones for an even count).
+    const auto middle = sorted_costs_.begin() + all_columns / 2;
+    std::nth_element(sorted_costs_.begin(), middle, sorted_costs_.begin() + all_columns);
+    float median = *middle;
+    if (all_columns % 2 == 0)
+      median = 0.5f * (median + *std::max_element(sorted_costs_.begin(), middle));
+    scale_squared = median * median;
+  }
+  for (int d = -m; d <= m; ++d)
+  {
+    const int columns = width_ - std::abs(d);
+    float* column_cost = column_costs_.data() + static_cast<size_t>(d + m) * width_;
+    if (scale_squared > 0.0f)
+      for (int i = 0; i < columns; ++i)
+        column_cost[i] = column_cost[i] * column_cost[i] / (column_cost[i] * column_cost[i] + scale_squared);
     const int kept =
         std::max(1, std::min(columns, static_cast<int>(std::lround(params_.kept_column_share * columns))));
     if (kept < columns)
-      std::nth_element(column_costs_.begin(), column_costs_.begin() + (kept - 1), column_costs_.begin() + columns);
+      std::nth_element(column_cost, column_cost + (kept - 1), column_cost + columns);
     double sum = 0.0;
     for (int i = 0; i < kept; ++i)
-      sum += column_costs_[i];
+      sum += column_cost[i];
     costs_[d + m] = sum / kept;
   }
   return costs_;

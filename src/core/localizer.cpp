@@ -163,20 +163,7 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
 {
   if (!map_ || map_->empty())
     throw std::invalid_argument("Localizer: the route map is empty");
-  // Properties of the map alone, measured once: what a normal keyframe's texture is, and how much
-  // consecutive keyframes differ while the teach camera moved.
-  std::vector<float> values(map_->size());
-  for (size_t k = 0; k < map_->size(); ++k)
-    values[k] = map_->energy(k);
-  median_energy_ = median(values);
-  const int sky = firstComparedRow();
-  keyframe_change_.assign(map_->size(), 0.0f);
-  forEachKeyframe(map_->size(), params.parallel, [&](int k) {
-    if (k > 0)
-      keyframe_change_[k] =
-          meanAbsoluteDifference(map_->keyframe(k - 1), map_->keyframe(k), map_->width(), map_->height(), sky);
-  });
-  median_keyframe_change_ = median(std::vector<float>(keyframe_change_.begin() + 1, keyframe_change_.end()));
+  measureMap(params.parallel);
   setParams(params);
   const size_t n = map_->size();
   raw_costs_.resize(n);
@@ -187,17 +174,16 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
 
 void Localizer::start()
 {
-  status_ = LocalizationStatus::kInitializing;
+  state_ = State::kInitializing;  // the initial state: nothing to leave, so not a transition
   last_match_ = -1;
   lost_position_ = -1.0;
-  coasting_ = false;
   last_confident_ = -1;
   frames_since_confident_ = 0;
   start_check_ = false;
   rows_since_start_ = views_since_start_ = 0;
   if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
     return;
-  status_ = LocalizationStatus::kTracking;
+  state_ = State::kTracking;
   last_match_ = start_match_ = params_.start_keyframe;
   start_check_ = true;
 }
@@ -226,44 +212,8 @@ void Localizer::setParams(const LocalizerParams& params)
   const int rows = std::max(params_.ring_buffer_rows,
                             params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : 0);
   ring_.resize(rows, static_cast<int>(map_->size()));
-  min_texture_energy_ = params_.min_texture_ratio * median_energy_;
-  stationary_change_ = params_.stationary_ratio * median_keyframe_change_;
-  keyframe_informative_.resize(map_->size());
-  for (size_t k = 0; k < map_->size(); ++k)
-    keyframe_informative_[k] = map_->energy(k) >= min_texture_energy_ ? 1 : 0;
-  // A featureless keyframe shows no view: it neither starts nor ends a run (it joins the run before it).
-  // An informative keyframe repeats the view of the last informative keyframe before it, or not.
-  keyframe_repeats_.assign(map_->size(), 0);
-  const int sky = firstComparedRow();
-  int last_informative = keyframe_informative_[0] ? 0 : -1;
-  for (size_t k = 1; k < map_->size(); ++k)
-  {
-    if (!keyframe_informative_[k])
-    {
-      keyframe_repeats_[k] = 1;
-      continue;
-    }
-    if (last_informative >= 0)
-    {
-      const float change =
-          last_informative == static_cast<int>(k) - 1 ?
-              keyframe_change_[k] :
-              meanAbsoluteDifference(map_->keyframe(last_informative), map_->keyframe(k), map_->width(),
-                                     map_->height(), sky);
-      keyframe_repeats_[k] = change < stationary_change_ ? 1 : 0;
-    }
-    last_informative = static_cast<int>(k);
-  }
-  keyframe_run_.assign(map_->size(), 0);
-  for (size_t k = 1; k < map_->size(); ++k)
-    keyframe_run_[k] = keyframe_run_[k - 1] + (keyframe_repeats_[k] ? 0 : 1);
-  const int n = static_cast<int>(map_->size());
-  run_first_.assign(n, 0);
-  run_last_.assign(n, n - 1);
-  for (int k = 1; k < n; ++k)
-    run_first_[k] = keyframe_run_[k] == keyframe_run_[k - 1] ? run_first_[k - 1] : k;
-  for (int k = n - 2; k >= 0; --k)
-    run_last_[k] = keyframe_run_[k] == keyframe_run_[k + 1] ? run_last_[k + 1] : k;
+  if (params_.min_texture_ratio != map_stats_.texture_ratio || params_.stationary_ratio != map_stats_.stationary_ratio)
+    classifyKeyframes();
   run_position_ = -1.0;
   if (static_cast<int>(recent_queries_.size()) != params_.relocalization_rows)
   {
@@ -274,7 +224,70 @@ void Localizer::setParams(const LocalizerParams& params)
   }
   if (comparators_changed)
     rebuildComparators();
-  chance_rows_ = -1;  // chanceMargin depends on the comparison, eq. 2 and the DTW
+  map_stats_.chance_rows = -1;  // chanceMargin depends on the comparison, eq. 2 and the DTW
+}
+
+void Localizer::measureMap(bool parallel)
+{
+  // Properties of the map alone: what a normal keyframe's texture is, and how much consecutive keyframes
+  // differ while the teach camera moved.
+  MapStatistics& stats = map_stats_;
+  std::vector<float> values(map_->size());
+  for (size_t k = 0; k < map_->size(); ++k)
+    values[k] = map_->energy(k);
+  stats.median_energy = median(values);
+  const int sky = firstComparedRow();
+  stats.change.assign(map_->size(), 0.0f);
+  forEachKeyframe(map_->size(), parallel, [&](int k) {
+    if (k > 0)
+      stats.change[k] =
+          meanAbsoluteDifference(map_->keyframe(k - 1), map_->keyframe(k), map_->width(), map_->height(), sky);
+  });
+  stats.median_change = median(std::vector<float>(stats.change.begin() + 1, stats.change.end()));
+}
+
+void Localizer::classifyKeyframes()
+{
+  MapStatistics& stats = map_stats_;
+  stats.texture_ratio = params_.min_texture_ratio;
+  stats.stationary_ratio = params_.stationary_ratio;
+  stats.min_texture_energy = params_.min_texture_ratio * stats.median_energy;
+  stats.stationary_change = params_.stationary_ratio * stats.median_change;
+  const int n = static_cast<int>(map_->size());
+  stats.informative.resize(n);
+  for (int k = 0; k < n; ++k)
+    stats.informative[k] = map_->energy(k) >= stats.min_texture_energy ? 1 : 0;
+  // A featureless keyframe shows no view: it neither starts nor ends a run (it joins the run before it).
+  // An informative keyframe repeats the view of the last informative keyframe before it, or not.
+  stats.repeats.assign(n, 0);
+  const int sky = firstComparedRow();
+  int last_informative = stats.informative[0] ? 0 : -1;
+  for (int k = 1; k < n; ++k)
+  {
+    if (!stats.informative[k])
+    {
+      stats.repeats[k] = 1;
+      continue;
+    }
+    if (last_informative >= 0)
+    {
+      const float change =
+          last_informative == k - 1 ? stats.change[k] :
+                                      meanAbsoluteDifference(map_->keyframe(last_informative), map_->keyframe(k),
+                                                             map_->width(), map_->height(), sky);
+      stats.repeats[k] = change < stats.stationary_change ? 1 : 0;
+    }
+    last_informative = k;
+  }
+  stats.run.assign(n, 0);
+  for (int k = 1; k < n; ++k)
+    stats.run[k] = stats.run[k - 1] + (stats.repeats[k] ? 0 : 1);
+  stats.run_first.assign(n, 0);
+  stats.run_last.assign(n, n - 1);
+  for (int k = 1; k < n; ++k)
+    stats.run_first[k] = stats.run[k] == stats.run[k - 1] ? stats.run_first[k - 1] : k;
+  for (int k = n - 2; k >= 0; --k)
+    stats.run_last[k] = stats.run[k] == stats.run[k + 1] ? stats.run_last[k + 1] : k;
 }
 
 int Localizer::firstComparedRow() const
@@ -318,7 +331,7 @@ void Localizer::rebuildComparators()
 
 void Localizer::reset()
 {
-  ring_.clear();  // (status_ and last_match_: start())
+  ring_.clear();  // (state_ and last_match_: start())
   confirmation_.clear();
   loss_.clear();
   frames_ = 0;
@@ -330,21 +343,20 @@ void Localizer::reset()
   cruise_speed_ = 1.0;
   cruise_samples_ = 1;
   recent_count_ = recent_next_ = 0;
-  relocalize_from_recent_ = false;
   clock_.forgetLastStamp();
   start();
 }
 
 int Localizer::keyframeThroughRun(int dtw_keyframe)
 {
-  const int first = run_first_[dtw_keyframe], last = run_last_[dtw_keyframe];
+  const int first = map_stats_.run_first[dtw_keyframe], last = map_stats_.run_last[dtw_keyframe];
   if (last == first)
   {
     run_position_ = -1.0;
     return dtw_keyframe;
   }
   const int current = run_position_ < 0.0 ? -1 : static_cast<int>(std::lround(run_position_));
-  if (current >= 0 && run_first_[current] == first)
+  if (current >= 0 && map_stats_.run_first[current] == first)
   {
     run_position_ = std::min(static_cast<double>(last), run_position_ + run_velocity_);
     return static_cast<int>(std::lround(run_position_));
@@ -435,10 +447,10 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
   // A featureless query or keyframe says nothing about where we are: it gets the neutral cost 0 (eq. 2
   // output is zero-mean), so dark stretches neither attract nor repel the path.
   for (int k = 0; k < width; ++k)
-    mask_[k] = query_informative && keyframe_informative_[first + k];
+    mask_[k] = query_informative && map_stats_.informative[first + k];
   float* row = (target ? *target : ring_).appendRow(first, width, repeated_query);
   const float peak = enhanceContrastRuns(
-      costs, mask_.data(), stationary_change_ > 0.0f ? keyframe_repeats_.data() + first : nullptr, width,
+      costs, mask_.data(), map_stats_.stationary_change > 0.0f ? map_stats_.repeats.data() + first : nullptr, width,
       params_.contrast_window, params_.contrast_min_std, params_.contrast_clamp, 0.0f, row, &contrast_scratch_);
   // Step 3a, an extension: a row whose best match stands out counts more (rowWeight). Only a tracking
   // row, whose peak is over the band (2 * search_radius + 1 keyframes): over the whole map the largest of
@@ -477,7 +489,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   const bool in_run = last_match_ >= 0 && inRunOfCopies(last_match_);
   const bool same_view = tick.missed > 0 && !in_run && repeatsLastView(query) &&
                          textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) >=
-                             min_texture_energy_;
+                             map_stats_.min_texture_energy;
   // (FrameClock reports no missed frames when time went back.)
   FrameGap gap = FrameGap::kNone;
   if (tick.missed > 0)
@@ -498,9 +510,9 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
 
 bool Localizer::repeatsLastView(const uint8_t* query) const
 {
-  return query && stationary_change_ > 0.0f && !entered_query_.empty() &&
+  return query && map_stats_.stationary_change > 0.0f && !entered_query_.empty() &&
          meanAbsoluteDifference(query, entered_query_.data, map_->width(), map_->height(), firstComparedRow()) <
-             stationary_change_;
+             map_stats_.stationary_change;
 }
 
 int Localizer::windowRows() const
@@ -519,17 +531,16 @@ void Localizer::skipFrames(int count)
     // which has no such status, initializes again); either way the search starts over from an empty
     // window (the recent frames are from before the gap too).
     if (params_.method == SequenceMethod::kSeqSlam)
-      status_ = LocalizationStatus::kInitializing;
-    else if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
+      transition(State::kInitializing);
+    else if (state_ == State::kTracking || state_ == State::kCoasting)
       loseTrack(std::min<double>(map_->size() - 1, last_match_ + coastSpeed() * count));
     ring_.clear();
     start_check_ = false;
     confirmation_.clear();
     loss_.clear();
     last_path_.clear();
-    run_position_ = -1.0;
+    run_position_ = reckon_position_ = -1.0;
     recent_count_ = recent_next_ = 0;
-    relocalize_from_recent_ = false;
     return;
   }
   // Each missed frame is a row without evidence, as a featureless frame is: the DTW paths go on through
@@ -541,139 +552,22 @@ void Localizer::skipFrames(int count)
 
 LocalizationResult Localizer::step(const uint8_t* query)
 {
-  const int n = static_cast<int>(map_->size());
-  LocalizationResult result;
-  const float query_energy =
-      query ? textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) : 0.0f;
-  result.query_informative = query && query_energy >= min_texture_energy_;
-
-  // The query repeats the previous row's view (the camera stood still): flagged for column centering.
-  const bool repeated_query = repeatsLastView(query);
-
-  const bool tracking = last_match_ >= 0 && (status_ == LocalizationStatus::kTracking ||
-                                             status_ == LocalizationStatus::kEndOfRoute);
-  const bool global = params_.method == SequenceMethod::kSeqSlam || !tracking;
-  // A known start (start_keyframe) is checked until K new views have come since it: the rows cover the
-  // whole map, so that a global search over them can refute the start (startRefuted) when the robot was
-  // not there, as soon as a global search would have found the place with the start unknown (a robot
-  // standing still elsewhere is not confirmed there before it moves on, ConfirmsAPlaceOnDistinctViews...).
-  // While the start's own frame is in the window, every path of the track starts at it.
-  const bool checking_start = tracking && params_.method == SequenceMethod::kOnlineDtw && start_check_ &&
-                              views_since_start_ < params_.ring_buffer_rows;
-  const bool first_from_start = start_check_ && rows_since_start_ == 0;  // no frame answered since the start
-  if (start_check_ && !checking_start)
-  {
-    start_check_ = false;  // enough views to go on its own
-    confirmation_.clear();
-  }
-  int first = 0, width = n;
-  // while tracking: one keyframe per frame (the first frame of a known start: the start keyframe)
-  const int predicted = first_from_start ? last_match_ : std::min(n - 1, last_match_ + 1);
-  if (!global)
-  {
-    // The robot moves forward at most max_step keyframes a frame; centre the band one step ahead.
-    first = std::max(0, predicted - params_.search_radius);
-    width = std::min(n, predicted + params_.search_radius + 1) - first;
-  }
-  if (relocalize_from_recent_ && global)
-  {
-    // The first global search after a loss: the frames before this one, over the whole map.
-    // (At most K - 1 of them: the window holds K rows with this frame's.)
-    replayRecentQueries(std::min(recent_count_, params_.ring_buffer_rows - 1), &ring_);
-  }
-  relocalize_from_recent_ = false;
-  if (checking_start)
-  {
-    computeRow(query, query_energy, result.query_informative, repeated_query, true, 0, n);
-    ++rows_since_start_;
-    views_since_start_ += query && result.query_informative && !repeated_query ? 1 : 0;
-  }
-  else
-    computeRow(query, query_energy, result.query_informative, repeated_query, global, first, width);
-  if (!recent_queries_.empty())
-  {
-    RecentQuery& recent = recent_queries_[recent_next_];
-    if (query)  // a missed frame's row is featureless: its image is never read
-      std::copy(query, query + map_->keyframeBytes(), recent.image.begin());
-    recent.energy = query_energy;
-    recent.informative = result.query_informative;
-    recent.repeated = repeated_query;
-    recent_next_ = (recent_next_ + 1) % static_cast<int>(recent_queries_.size());
-    recent_count_ = std::min(recent_count_ + 1, static_cast<int>(recent_queries_.size()));
-  }
-  if (query)
-    cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
-  else if (global)
+  Frame frame = beginFrame(query);
+  appendRow(frame);
+  if (!query && frame.global)
   {
     // A missed frame during a global search: its row is in the window, but matching it over the whole map
     // would cost a global search and say nothing new. It counts as a featureless frame for the
     // confirmation (the robot may have moved on meanwhile).
     confirmation_.update(-1, false, false);
     last_path_.clear();
+    LocalizationResult result;
+    result.query_informative = false;
     return result;
   }
-
-  SequenceMatch match;
-  if (params_.method == SequenceMethod::kSeqSlam)
-    match = seqSlamMatch(ring_, 0, n, params_.seqslam);
-  else
-  {
-    // While tracking, the new match continues from the last one (max_jump_ahead): a step back within the
-    // exclusion radius corrects the answer at the same place (e.g. after running on past a stop); a
-    // cheaper path further back or far ahead is another place, which still counts against the confidence,
-    // so the loss detection and the global search take over if it persists.
-    // (The range always holds `predicted`, last_match_ + 1 at most.)
-    int first_choice = 0, last_choice = n - 1;
-    EndPrior prior;
-    if (!global)
-    {
-      first_choice = last_match_ - params_.dtw.exclusion_radius;
-      last_choice = last_match_ + params_.dtw.max_step + params_.max_jump_ahead;
-      prior = motionPrior(repeated_query);
-    }
-    if (params_.cruise_speed_frames > 0)
-      dtw_.setParams(cruiseSpeedTieBreak(params_.dtw, cruise_speed_));
-    // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
-    // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
-    // A known start while its frame is in the window (the oldest row: the ring was empty at the start):
-    // every path starts there.
-    const bool start_in_window = rows_since_start_ <= std::min(params_.ring_buffer_rows, ring_.size());
-    const int path_start = checking_start && start_in_window ? start_match_ : -1;
-    match = dtw_.match(ring_, first, width, params_.ring_buffer_rows, !global, keyframe_run_.data(), first_choice,
-                       last_choice, prior, path_start);
-  }
-  last_path_ = match.path;
-  // A window without evidence (featureless rows only: a blinded camera, a tunnel longer than K frames)
-  // ties every end keyframe: dead-reckon from the last answer at the robot's own speed (its cruise speed,
-  // fractional positions carried from frame to frame) instead of taking the first of the ties.
-  reckon_position_ = global ? -1.0 : reckonedPosition(first_from_start);
-  const int reckoned = static_cast<int>(std::lround(reckon_position_));
-  if (global || reckoned < first || reckoned >= first + width ||
-      dtw_.lastAccumulated()[reckoned - first] > match.cost)
-    reckon_position_ = -1.0;  // the evidence chose: the DTW's answer
-  else
-    match.keyframe = reckoned;
-  if (!global && params_.method == SequenceMethod::kOnlineDtw && params_.run_dead_reckoning)
-    match.keyframe = keyframeThroughRun(match.keyframe);
-  else
-    run_position_ = -1.0;
-  bool left_start = false;  // the global search confirmed another place than the known start's track
-  if (checking_start && !query)
-    confirmation_.update(-1, false, false);  // a missed frame: as in a global search (no search for it)
-  else if (checking_start)
-  {
-    SequenceMatch elsewhere;
-    if (startRefuted(match, result.query_informative, &elsewhere))
-    {
-      match = elsewhere;
-      left_start = true;
-      start_check_ = false;
-      run_position_ = -1.0;
-      last_path_.clear();
-      tracked_frames_ = 0;
-      loss_.clear();
-    }
-  }
+  SequenceMatch match = matchSequence(frame);
+  if (frame.checking_start)
+    checkStart(&frame, &match);
 
   // Confidence: how much cheaper per row the best path is than the best path ending elsewhere. The
   // reported confidence is about the keyframe (a copy of the same view nearby competes) and weighs that
@@ -689,105 +583,253 @@ LocalizationResult Localizer::step(const uint8_t* query)
   // confirmed: Localizer.LeavesTheRouteThenRelocalizes). The loss detection goes by the unweighted
   // confidence: a long track is not lost because the camera stands still.
   const double evidence = evidenceShare(match);
-  result.confidence = matchConfidence(match, false, evidence);
-  result.keyframe = match.keyframe;
-  result.confidence = calibratedConfidence(result.confidence, params_.calibration_offset, params_.calibration_slope);
-
+  const double confidence = calibratedConfidence(matchConfidence(match, false, evidence),
+                                                 params_.calibration_offset, params_.calibration_slope);
   const bool confident = matchConfidence(match, true, 1.0) >= params_.confidence_threshold;
-  bool moved_track = false;         // the checks confirmed another place: the track moved there
-  bool contradicted = false;        // while coasting, this frame's check found another place (published: lost)
   const bool confirmable = matchConfidence(match, true, evidence) >= params_.confidence_threshold;
+
+  // The state machine (doc/design.md, section 2): one handler per state the frame came in.
   if (params_.method == SequenceMethod::kSeqSlam)
   {
-    if (ring_.size() >= params_.min_init_frames)
-      status_ = LocalizationStatus::kTracking;  // the baseline has no notion of being lost
+    if (state_ == State::kInitializing && ring_.size() >= params_.min_init_frames)
+      transition(State::kTracking);  // the baseline has no notion of being lost
   }
-  else if (!tracking)
+  else if (!frame.tracking)
+    searchStep(frame, match, confirmable);
+  else
+    trackStep(&frame, &match, confident);
+  if (state_ == State::kTracking || state_ == State::kCoasting)
+    followTrack(frame, match.keyframe);
+  return publish(frame, match.keyframe, confidence);
+}
+
+Localizer::Frame Localizer::beginFrame(const uint8_t* query)
+{
+  const int n = static_cast<int>(map_->size());
+  Frame frame;
+  frame.query = query;
+  frame.energy = query ? textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) : 0.0f;
+  frame.informative = query && frame.energy >= map_stats_.min_texture_energy;
+  // The query repeats the previous row's view (the camera stood still): flagged for column centering.
+  frame.repeated = repeatsLastView(query);
+  frame.tracking = last_match_ >= 0 && (state_ == State::kTracking || state_ == State::kCoasting);
+  frame.global = params_.method == SequenceMethod::kSeqSlam || !frame.tracking;
+  // A known start (start_keyframe) is checked until K new views have come since it: the rows cover the
+  // whole map, so that a global search over them can refute the start (startRefuted) when the robot was
+  // not there, as soon as a global search would have found the place with the start unknown (a robot
+  // standing still elsewhere is not confirmed there before it moves on, ConfirmsAPlaceOnDistinctViews...).
+  // While the start's own frame is in the window, every path of the track starts at it.
+  frame.checking_start = frame.tracking && params_.method == SequenceMethod::kOnlineDtw && start_check_ &&
+                         views_since_start_ < params_.ring_buffer_rows;
+  frame.first_from_start = start_check_ && rows_since_start_ == 0;  // no frame answered since the start
+  if (start_check_ && !frame.checking_start)
   {
-    if (ring_.size() >= params_.min_init_frames &&
-        confirmation_.update(match.keyframe, confirmable, result.query_informative))
-    {
-      status_ = LocalizationStatus::kTracking;
-      tracked_frames_ = 0;
-      confirmation_.clear();
-      loss_.clear();
-    }
+    start_check_ = false;  // enough views to go on its own
+    confirmation_.clear();
+  }
+  // while tracking: one keyframe per frame (the first frame of a known start: the start keyframe)
+  frame.predicted = frame.first_from_start ? last_match_ : std::min(n - 1, last_match_ + 1);
+  frame.first = 0;
+  frame.width = n;
+  if (!frame.global)
+  {
+    // The robot moves forward at most max_step keyframes a frame; centre the band one step ahead.
+    frame.first = std::max(0, frame.predicted - params_.search_radius);
+    frame.width = std::min(n, frame.predicted + params_.search_radius + 1) - frame.first;
+  }
+  return frame;
+}
+
+void Localizer::appendRow(const Frame& frame)
+{
+  const int n = static_cast<int>(map_->size());
+  const uint8_t* query = frame.query;
+  if (state_ == State::kLost && ring_.size() == 0)
+  {
+    // The first global search after a loss (which cleared the window): the frames before this one, over
+    // the whole map. (At most K - 1 of them: the window holds K rows with this frame's.)
+    replayRecentQueries(std::min(recent_count_, params_.ring_buffer_rows - 1), &ring_);
+  }
+  if (frame.checking_start)
+  {
+    computeRow(query, frame.energy, frame.informative, frame.repeated, true, 0, n);
+    ++rows_since_start_;
+    views_since_start_ += query && frame.informative && !frame.repeated ? 1 : 0;
   }
   else
+    computeRow(query, frame.energy, frame.informative, frame.repeated, frame.global, frame.first, frame.width);
+  if (!recent_queries_.empty())
   {
-    if (confident && result.query_informative)
+    RecentQuery& recent = recent_queries_[recent_next_];
+    if (query)  // a missed frame's row is featureless: its image is never read
+      std::copy(query, query + map_->keyframeBytes(), recent.image.begin());
+    recent.energy = frame.energy;
+    recent.informative = frame.informative;
+    recent.repeated = frame.repeated;
+    recent_next_ = (recent_next_ + 1) % static_cast<int>(recent_queries_.size());
+    recent_count_ = std::min(recent_count_ + 1, static_cast<int>(recent_queries_.size()));
+  }
+  if (query)
+    cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
+}
+
+SequenceMatch Localizer::matchSequence(const Frame& frame)
+{
+  const int n = static_cast<int>(map_->size());
+  SequenceMatch match;
+  if (params_.method == SequenceMethod::kSeqSlam)
+    match = seqSlamMatch(ring_, 0, n, params_.seqslam);
+  else
+  {
+    // While tracking, the new match continues from the last one (max_jump_ahead): a step back within the
+    // exclusion radius corrects the answer at the same place (e.g. after running on past a stop); a
+    // cheaper path further back or far ahead is another place, which still counts against the confidence,
+    // so the loss detection and the global search take over if it persists.
+    // (The range always holds `predicted`, last_match_ + 1 at most.)
+    int first_choice = 0, last_choice = n - 1;
+    EndPrior prior;
+    if (!frame.global)
     {
-      coasting_ = false;  // evidence again: the DTW's answer
-      last_confident_ = match.keyframe;
-      frames_since_confident_ = 0;
+      first_choice = last_match_ - params_.dtw.exclusion_radius;
+      last_choice = last_match_ + params_.dtw.max_step + params_.max_jump_ahead;
+      prior = motionPrior(frame.repeated);
     }
-    else
-      ++frames_since_confident_;
-    bool check_started = false;
-    if (loss_.update(confident, result.query_informative && !repeated_query))  // new views only
+    if (params_.cruise_speed_frames > 0)
+      dtw_.setParams(cruiseSpeedTieBreak(params_.dtw, cruise_speed_));
+    // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
+    // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
+    // A known start while its frame is in the window (the oldest row: the ring was empty at the start):
+    // every path starts there.
+    const bool start_in_window = rows_since_start_ <= std::min(params_.ring_buffer_rows, ring_.size());
+    const int path_start = frame.checking_start && start_in_window ? start_match_ : -1;
+    match = dtw_.match(ring_, frame.first, frame.width, params_.ring_buffer_rows, !frame.global,
+                       map_stats_.run.data(), first_choice, last_choice, prior, path_start);
+  }
+  last_path_ = match.path;
+  // A window without evidence (featureless rows only: a blinded camera, a tunnel longer than K frames)
+  // ties every end keyframe: dead-reckon from the last answer at the robot's own speed (its cruise speed,
+  // fractional positions carried from frame to frame) instead of taking the first of the ties.
+  reckon_position_ = frame.global ? -1.0 : reckonedPosition(frame.first_from_start);
+  const int reckoned = static_cast<int>(std::lround(reckon_position_));
+  if (frame.global || reckoned < frame.first || reckoned >= frame.first + frame.width ||
+      dtw_.lastAccumulated()[reckoned - frame.first] > match.cost)
+    reckon_position_ = -1.0;  // the evidence chose: the DTW's answer
+  else
+    match.keyframe = reckoned;
+  if (!frame.global && params_.method == SequenceMethod::kOnlineDtw && params_.run_dead_reckoning)
+    match.keyframe = keyframeThroughRun(match.keyframe);
+  else
+    run_position_ = -1.0;
+  return match;
+}
+
+void Localizer::checkStart(Frame* frame, SequenceMatch* match)
+{
+  if (!frame->query)
+  {
+    confirmation_.update(-1, false, false);  // a missed frame: as in a global search (no search for it)
+    return;
+  }
+  SequenceMatch elsewhere;
+  if (!startRefuted(*match, frame->informative, &elsewhere))
+    return;
+  // The global search confirmed another place than the known start's track: the track goes on from there.
+  *match = elsewhere;
+  transition(State::kTracking, elsewhere.keyframe);
+  frame->relocated = true;
+}
+
+void Localizer::searchStep(const Frame& frame, const SequenceMatch& match, bool confirmable)
+{
+  // Initializing or lost: a place is confirmed by init_confirm_frames confirmable answers in a row that
+  // move as the robot can (GlobalConfirmation), from the min_init_frames-th row on.
+  if (ring_.size() >= params_.min_init_frames && confirmation_.update(match.keyframe, confirmable, frame.informative))
+    transition(State::kTracking, match.keyframe);
+}
+
+void Localizer::trackStep(Frame* frame, SequenceMatch* match, bool confident)
+{
+  if (confident && frame->informative)
+  {
+    if (state_ == State::kCoasting)
+      transition(State::kTracking);  // evidence again: the DTW's answer
+    last_confident_ = match->keyframe;
+    frames_since_confident_ = 0;
+  }
+  else
+    ++frames_since_confident_;
+  bool check_started = false;
+  if (loss_.update(confident, frame->informative && !frame->repeated))  // new views only
+  {
+    if (!params_.loss_needs_contradiction || last_confident_ < 0)
+      loseTrack(match->keyframe);
+    else if (state_ == State::kTracking)
     {
-      if (!params_.loss_needs_contradiction || last_confident_ < 0)
-        loseTrack(match.keyframe);
-      else if (!coasting_)
-      {
-        // Weak evidence so far: the robot moved on at its cruise speed since the last confident answer,
-        // and the frames are compared with the whole map from now on (trackContradicted).
-        coasting_ = true;
-        check_started = true;
-        check_confirmation_.clear();
-        coast_position_ = last_confident_ + coastSpeed() * (frames_since_confident_ - 1);
-      }
-      loss_.clear();  // the detection counts afresh
+      // Weak evidence so far: the robot moved on at its cruise speed since the last confident answer,
+      // and the frames are compared with the whole map from now on (trackContradicted).
+      transition(State::kCoasting);
+      check_started = true;
     }
-    if (coasting_ && query)
+    loss_.clear();  // the detection counts afresh
+  }
+  if (state_ == State::kCoasting)
+    coastStep(frame, match, check_started);
+}
+
+void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started)
+{
+  if (frame->query)
+  {
+    // Each frame may bring the evidence of another place; the track moves there once init_confirm_frames
+    // checks in a row were contradicted by places that move along the route like the robot can (a
+    // single check's winner is a wrong place now and then).
+    frame->contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), !check_started);
+    if (check_confirmation_.update(frame->contradicted ? contradicting_place_ : -1, frame->contradicted,
+                                   frame->informative))
     {
-      // Each frame may bring the evidence of another place; the track moves there once init_confirm_frames
-      // checks in a row were contradicted by places that move along the route like the robot can (a
-      // single check's winner is a wrong place now and then).
-      contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), !check_started);
-      if (check_confirmation_.update(contradicted ? contradicting_place_ : -1, contradicted,
-                                     result.query_informative))
-      {
-        moveTrackTo(contradicting_place_);
-        match.keyframe = contradicting_place_;
-        result.keyframe = contradicting_place_;
-        moved_track = true;
-        contradicted = false;
-      }
-    }
-    if (coasting_)
-    {
-      // A query that repeats the last view: the camera stood still, and so does the dead reckoning.
-      if (!repeated_query)
-        coast_position_ = std::min(static_cast<double>(n - 1), coast_position_ + coastSpeed());
-      match.keyframe = static_cast<int>(std::lround(coast_position_));
-      // Contradicted (published lost): the place that contradicts, unless dead_reckon_while_lost.
-      result.keyframe = contradicted && !params_.dead_reckon_while_lost ? contradicting_place_ : match.keyframe;
-      run_position_ = -1.0;
+      moveTrackTo(contradicting_place_);
+      match->keyframe = contradicting_place_;
+      frame->relocated = true;
+      frame->contradicted = false;
+      return;
     }
   }
-  if (status_ == LocalizationStatus::kTracking || status_ == LocalizationStatus::kEndOfRoute)
+  // A query that repeats the last view: the camera stood still, and so does the dead reckoning.
+  if (!frame->repeated)
+    coast_position_ = std::min(static_cast<double>(map_->size() - 1), coast_position_ + coastSpeed());
+  match->keyframe = static_cast<int>(std::lround(coast_position_));
+  run_position_ = -1.0;
+}
+
+void Localizer::followTrack(const Frame& frame, int keyframe)
+{
+  // The cruise speed: the steps of a track followed from one informative frame to the next (a
+  // relocalization's jump is not a step; a featureless frame's answer is dead reckoning). Their mean,
+  // with the nominal speed as the first sample, until cruise_speed_frames samples; then a moving
+  // average over that many.
+  if (frame.tracking && !frame.first_from_start && !frame.relocated && frame.informative &&
+      params_.cruise_speed_frames > 0)
   {
-    // The cruise speed: the steps of a track followed from one informative frame to the next (a
-    // relocalization's jump is not a step; a featureless frame's answer is dead reckoning). Their mean,
-    // with the nominal speed as the first sample, until cruise_speed_frames samples; then a moving
-    // average over that many.
-    if (tracking && !first_from_start && !left_start && !moved_track && result.query_informative &&
-        params_.cruise_speed_frames > 0)
-    {
-      const double step = std::min(std::max(match.keyframe - last_match_, 0), params_.dtw.max_step);
-      cruise_samples_ = std::min(cruise_samples_ + 1, params_.cruise_speed_frames);
-      cruise_speed_ += (step - cruise_speed_) / cruise_samples_;
-    }
-    ++tracked_frames_;
-    last_match_ = match.keyframe;
-    status_ = match.keyframe >= n - 1 - params_.end_of_route_keyframes ? LocalizationStatus::kEndOfRoute :
-                                                                          LocalizationStatus::kTracking;
+    const double step = std::min(std::max(keyframe - last_match_, 0), params_.dtw.max_step);
+    cruise_samples_ = std::min(cruise_samples_ + 1, params_.cruise_speed_frames);
+    cruise_speed_ += (step - cruise_speed_) / cruise_samples_;
   }
+  ++tracked_frames_;
+  last_match_ = keyframe;
+}
+
+LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double confidence)
+{
+  const int n = static_cast<int>(map_->size());
+  LocalizationResult result;
+  result.query_informative = frame.informative;
+  result.confidence = confidence;
+  // Contradicted (published lost): the place that contradicts, unless dead_reckon_while_lost.
+  result.keyframe = frame.contradicted && !params_.dead_reckon_while_lost ? contradicting_place_ : keyframe;
   // Lost: confidence 0 until the global search confirms a place (the frame that confirms it answers there);
   // the answer is the global search's guess, or (dead_reckon_while_lost) where the robot went at the
   // cruise speed since the loss.
-  if (status_ == LocalizationStatus::kLost || contradicted)
+  if (state_ == State::kLost || frame.contradicted)
   {
     result.confidence = 0.0;  // contradicted, or unconfirmed: no chance worth a number
     if (lost_position_ >= 0.0 && params_.dead_reckon_while_lost)
@@ -796,15 +838,70 @@ LocalizationResult Localizer::step(const uint8_t* query)
       result.keyframe = static_cast<int>(std::lround(lost_position_));
     }
   }
-  result.status = contradicted ? LocalizationStatus::kLost : status_;  // lost: contradicted, not unconfirmed
+  result.status = frame.contradicted ? LocalizationStatus::kLost : status();  // lost: contradicted, not unconfirmed
   if (result.keyframe >= 0)
   {
     result.keyframe_stamp_ns = map_->stampNs(result.keyframe);
     if (result.query_informative)  // the homing estimate (homing.h); a featureless query reports none
-      result.shift_px = homing_->estimate(query, map_->keyframe(result.keyframe)).shift_px;
+      result.shift_px = homing_->estimate(frame.query, map_->keyframe(result.keyframe)).shift_px;
     result.homing_angle_rad = homingAngleFromShift(result.shift_px, map_->width(), params_.horizontal_fov_rad);
   }
   return result;
+}
+
+LocalizationStatus Localizer::status() const
+{
+  switch (state_)
+  {
+    case State::kInitializing:
+      return LocalizationStatus::kInitializing;
+    case State::kLost:
+      return LocalizationStatus::kLost;
+    case State::kTracking:
+    case State::kCoasting:
+      break;
+  }
+  return last_match_ >= static_cast<int>(map_->size()) - 1 - params_.end_of_route_keyframes ?
+             LocalizationStatus::kEndOfRoute :
+             LocalizationStatus::kTracking;
+}
+
+void Localizer::transition(State next, int place)
+{
+  // Every change of state_ but the initial one (start()) comes here; what each state needs on entry:
+  state_ = next;
+  switch (next)
+  {
+    case State::kInitializing:  // the baseline after a gap (skipFrames, which clears the window)
+      break;
+    case State::kTracking:
+      if (place < 0)
+        break;  // coasting ended by a confident frame, or the baseline's first answer: the track goes on
+      // A place confirmed (a global search, the start's check, the checks while coasting): a new track,
+      // which owes nothing to an old one's answers (its last confident one, its dead reckoning while lost).
+      last_match_ = place;
+      last_confident_ = -1;
+      frames_since_confident_ = 0;
+      lost_position_ = -1.0;
+      last_path_.clear();
+      run_position_ = reckon_position_ = -1.0;
+      tracked_frames_ = 0;
+      start_check_ = false;
+      confirmation_.clear();
+      check_confirmation_.clear();
+      loss_.clear();
+      break;
+    case State::kCoasting:
+      // Weak evidence: dead reckoning at the cruise speed from the last confident answer.
+      check_confirmation_.clear();
+      coast_position_ = last_confident_ + coastSpeed() * (frames_since_confident_ - 1);
+      break;
+    case State::kLost:
+      ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
+      start_check_ = false;
+      confirmation_.clear();
+      break;
+  }
 }
 
 double Localizer::reckonedPosition(bool first_from_start) const
@@ -822,13 +919,8 @@ double Localizer::coastSpeed() const
 
 void Localizer::loseTrack(double track_position)
 {
-  coasting_ = false;
-  status_ = LocalizationStatus::kLost;
-  ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
-  start_check_ = false;
-  confirmation_.clear();
-  relocalize_from_recent_ = true;
   lost_position_ = track_position;
+  transition(State::kLost);
 }
 
 bool Localizer::trackContradicted(int track_keyframe, bool go_on)
@@ -849,10 +941,10 @@ bool Localizer::trackContradicted(int track_keyframe, bool go_on)
     replayRecentQueries(std::min(recent_count_, window), &check_ring_);
   }
   const int rows = check_ring_.size();
-  const SequenceMatch elsewhere = dtw_.match(check_ring_, 0, n, rows, false, keyframe_run_.data());
+  const SequenceMatch elsewhere = dtw_.match(check_ring_, 0, n, rows, false, map_stats_.run.data());
   contradicting_place_ = elsewhere.keyframe;
   if (elsewhere.keyframe < 0 ||
-      std::abs(keyframe_run_[elsewhere.keyframe] - keyframe_run_[track_keyframe]) <= params_.dtw.exclusion_radius)
+      std::abs(map_stats_.run[elsewhere.keyframe] - map_stats_.run[track_keyframe]) <= params_.dtw.exclusion_radius)
     return false;  // the sequence still ends at the track's place
   // As a global search confirms a place: its confidence weighed by the distinct views among K rows.
   const double evidence =
@@ -896,20 +988,13 @@ void Localizer::moveTrackTo(int keyframe)
     for (int k = 0; k < n; ++k)
       row[k] = check_ring_.at(age, k, 0.0f);
   }
-  last_match_ = keyframe;
-  last_path_.clear();
-  run_position_ = -1.0;
-  tracked_frames_ = 0;
-  coasting_ = false;
-  last_confident_ = -1;
-  check_confirmation_.clear();
-  loss_.clear();
+  transition(State::kTracking, keyframe);
 }
 
 float Localizer::chanceMargin(int rows)
 {
-  if (chance_rows_ == rows)
-    return chance_margin_;
+  if (map_stats_.chance_rows == rows)
+    return map_stats_.chance_margin;
   // Stretches of this map's own keyframes are the queries, and their true places are left out: the
   // cheapest path at a wrong place then beats the track-sized stretch of ends at another wrong place by
   // the chance margin of this map. Sampled at kChanceWindows evenly spaced stretches, the largest kept.
@@ -923,9 +1008,9 @@ float Localizer::chanceMargin(int rows)
     const int a = static_cast<int>(static_cast<int64_t>(sample) * (n - rows) / kChanceWindows);
     ring.clear();
     for (int i = 0; i < rows; ++i)
-      computeRow(map_->keyframe(a + i), map_->energy(a + i), keyframe_informative_[a + i] != 0, false, true, 0, n,
+      computeRow(map_->keyframe(a + i), map_->energy(a + i), map_stats_.informative[a + i] != 0, false, true, 0, n,
                  &ring);
-    dtw_.match(ring, 0, n, rows, false, keyframe_run_.data());
+    dtw_.match(ring, 0, n, rows, false, map_stats_.run.data());
     const std::vector<float>& accumulated = dtw_.lastAccumulated();
     const int lo = a - reach, hi = a + rows - 1 + reach;  // the stretch's true place, and what eq. 2 spread of it
     float best_wrong = std::numeric_limits<float>::infinity();
@@ -941,9 +1026,9 @@ float Localizer::chanceMargin(int rows)
     if (std::isfinite(best_wrong) && std::isfinite(track_wrong))
       largest = std::max(largest, track_wrong - best_wrong);
   }
-  chance_rows_ = rows;
-  chance_margin_ = largest;
-  return chance_margin_;
+  map_stats_.chance_rows = rows;
+  map_stats_.chance_margin = largest;
+  return map_stats_.chance_margin;
 }
 
 double Localizer::evidenceShare(const SequenceMatch& match) const
@@ -968,14 +1053,14 @@ bool Localizer::startRefuted(const SequenceMatch& track, bool informative, Seque
   if (ring_.size() < params_.min_init_frames)
     return false;
   *elsewhere = dtw_.match(ring_, 0, static_cast<int>(map_->size()), params_.ring_buffer_rows, false,
-                          keyframe_run_.data());
+                          map_stats_.run.data());
   const bool confirmable =
       matchConfidence(*elsewhere, true, evidenceShare(*elsewhere)) >= params_.confidence_threshold;
   if (!confirmation_.update(elsewhere->keyframe, confirmable, informative))
     return false;
   confirmation_.clear();
   // Confirmed at the track's place (copies of one view count as one place): the start holds.
-  return std::abs(keyframe_run_[elsewhere->keyframe] - keyframe_run_[track.keyframe]) > params_.dtw.exclusion_radius;
+  return std::abs(map_stats_.run[elsewhere->keyframe] - map_stats_.run[track.keyframe]) > params_.dtw.exclusion_radius;
 }
 
 cv::Mat Localizer::renderDebugImage(int first_keyframe, int width, int scale) const
@@ -985,7 +1070,7 @@ cv::Mat Localizer::renderDebugImage(int first_keyframe, int width, int scale) co
   content.keyframes = std::max(1, width);
   content.path = last_path_;
   content.match_keyframe = last_match_;
-  content.status = toString(status_);
+  content.status = toString(status());
   content.cost_clamp = params_.contrast_clamp;
   content.cell_px = std::max(1, scale);
   cv::Mat image;

@@ -2,7 +2,7 @@
 // package's homing estimator (HomingEstimator), by the matching's strip search (ImageDifference) and by
 // OpenCV phase correlation, all on the images preprocessed as the package does. scripts/evaluate_homing
 // runs it and computes the figures.
-//   homing_pairs --pairs pairs.csv [--true-width 1024] [--homing M:V:S[:FIT] ...] [--set name=value ...]
+//   homing_pairs --pairs pairs.csv [--true-width 1024] [--homing M:V:S[:FIT[:robust]] ...] [--set name=value ...]
 //                [--save-preprocessed DIR]
 #include <algorithm>
 #include <cmath>
@@ -33,15 +33,16 @@ namespace
 
 void usage(std::ostream& out)
 {
-  out << "usage: homing_pairs --pairs pairs.csv [--true-width PX] [--homing M:V:S[:FIT] ...] [--set name=value ...]\n"
+  out << "usage: homing_pairs --pairs pairs.csv [--true-width PX] [--homing M:V:S[:FIT[:robust]] ...]\n"
+         "                    [--set name=value ...]\n"
          "                    [--save-preprocessed DIR]\n"
          "  pairs.csv: header place,map_image,query_image,true_shift_px (image paths absolute or relative to\n"
          "        the CSV's folder; true_shift_px: the query's content lies this far to the RIGHT of the map image's,\n"
          "        in px of an image --true-width px wide, default 1024). Every image is preprocessed with\n"
          "        the package's parameters (defaults; --set name=value overrides, e.g. sky_fraction=0.25).\n"
-         "  --homing M:V:S[:FIT]: measure with HomingEstimator(max_shift_px M, max_vertical_shift_px V,\n"
-         "        kept_column_share S, subpixel fit parabola or equiangular, default equiangular); one column\n"
-         "        per option, named homing_M_V_S_FIT. Without any: the Localizer's homing_max_shift_px and\n"
+         "  --homing M:V:S[:FIT[:robust]]: measure with HomingEstimator(max_shift_px M, max_vertical_shift_px V,\n"
+         "        kept_column_share S, subpixel fit parabola or equiangular, default equiangular; robust:\n"
+         "        robust_column_cost); one column per option, named homing_M_V_S_FIT[_robust]. Without any: the Localizer's homing_max_shift_px and\n"
          "        homing_max_vertical_shift_px (defaults, or given with --set), the rest at its defaults.\n"
          "  Output CSV on stdout: place,map_image,query_image,true_shift_px (in px of the preprocessed\n"
          "        width), strip_sad (the matching's search, max_shift_px), phase_correlation (on the\n"
@@ -150,15 +151,18 @@ int main(int argc, char** argv)
       const std::string spec = argv[++i];
       alr::HomingParams params;
       std::stringstream fields(spec);
-      std::string shift, vertical, share, fit;
+      std::string shift, vertical, share, fit, robust, rest;
       std::getline(fields, shift, ':');
       std::getline(fields, vertical, ':');
       std::getline(fields, share, ':');
       std::getline(fields, fit, ':');
+      std::getline(fields, robust, ':');
+      std::getline(fields, rest);
       if (shift.empty() || vertical.empty() || share.empty() ||
-          (!fit.empty() && fit != "parabola" && fit != "equiangular"))
+          (!fit.empty() && fit != "parabola" && fit != "equiangular") || (!robust.empty() && robust != "robust") ||
+          !rest.empty())
       {
-        std::cerr << "homing_pairs: --homing takes M:V:S[:parabola|equiangular], got " << spec << "\n";
+        std::cerr << "homing_pairs: --homing takes M:V:S[:parabola|equiangular[:robust]], got " << spec << "\n";
         return 2;
       }
       params.max_shift_px = std::atoi(shift.c_str());
@@ -166,6 +170,7 @@ int main(int argc, char** argv)
       params.kept_column_share = std::atof(share.c_str());
       if (!fit.empty())
         params.subpixel_fit = fit == "parabola" ? alr::SubpixelFit::kParabola : alr::SubpixelFit::kEquiangular;
+      params.robust_column_cost = robust == "robust";
       homing_options.push_back(params);
     }
     else if (arg == "--set" && has_value)
@@ -268,8 +273,9 @@ int main(int argc, char** argv)
 
   std::printf("place,map_image,query_image,true_shift_px,strip_sad,phase_correlation,phase_correlation_gray");
   for (const alr::HomingParams& params : homing_options)
-    std::printf(",homing_%d_%d_%g_%s", params.max_shift_px, params.max_vertical_shift_px, params.kept_column_share,
-                params.subpixel_fit == alr::SubpixelFit::kParabola ? "parabola" : "equiangular");
+    std::printf(",homing_%d_%d_%g_%s%s", params.max_shift_px, params.max_vertical_shift_px, params.kept_column_share,
+                params.subpixel_fit == alr::SubpixelFit::kParabola ? "parabola" : "equiangular",
+                params.robust_column_cost ? "_robust" : "");
   std::printf("\n");
   for (const Pair& pair : pairs)
   {

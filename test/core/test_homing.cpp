@@ -62,6 +62,14 @@ arl::HomingParams homingParams(int max_shift_px, double kept_column_share, arl::
   params.max_shift_px = max_shift_px;
   params.kept_column_share = kept_column_share;
   params.subpixel_fit = fit;
+  params.robust_column_cost = false;  // the hand-worked costs below are the plain ones
+  return params;
+}
+
+arl::HomingParams robustParams(int max_shift_px)
+{
+  arl::HomingParams params = homingParams(max_shift_px, 1.0, arl::SubpixelFit::kEquiangular);
+  params.robust_column_cost = true;
   return params;
 }
 
@@ -136,6 +144,72 @@ TEST(HomingEstimator, ParabolaFitOnTheSameRampFallsShort)
   EXPECT_NEAR(2.25, estimator.estimate(query.data(), keyframe.data()).shift_px, 1e-12);
 }
 
+TEST(HomingEstimator, RobustCostsOfARampByHand)
+{
+  // The ramp's column costs |3d - 7| (above) over d = -4 .. 4, with 60, 61, 62, 63, 64, 63, 62, 61, 60
+  // columns overlapping: 556 costs, sorted 1 (62 of them), 2 (61), 4 (63), 5 (60), 7 (64), ...: the two
+  // middle ones (277th and 278th) are 7, so s = 7 and each cost c counts as c^2 / (c^2 + 49).
+  std::vector<uint8_t> query, keyframe;
+  rampPair(&query, &keyframe);
+  arl::HomingEstimator estimator(kWidth, kHeight, 0, robustParams(4));
+  const std::vector<double>& cost = estimator.costs(query.data(), keyframe.data());
+  ASSERT_EQ(9u, cost.size());
+  for (int d = -4; d <= 4; ++d)
+  {
+    const double c = std::abs(3 * d - 7);
+    EXPECT_NEAR(c * c / (c * c + 49.0), cost[d + 4], 1e-6) << "d = " << d;
+  }
+  // Best d = 2 (1/50), neighbours 16/65 (d = 1) and 4/53 (d = 3): equiangular
+  // 2 + 0.5 (16/65 - 4/53) / (16/65 - 1/50) = 126/53 = 2.3774 (the plain costs' 7/3 = 2.3333).
+  EXPECT_NEAR(126.0 / 53.0, estimator.estimate(query.data(), keyframe.data()).shift_px, 1e-5);
+}
+
+TEST(HomingEstimator, RobustCostFindsIntegerShiftsOfAScene)
+{
+  // Two views of one random scene, moved d px: every overlapping column matches exactly at d (cost 0,
+  // whatever the scale s), so the robust estimate is d, as the plain one.
+  const int scene_width = kWidth + 40;
+  const std::vector<uint8_t> scene = randomBytes(scene_width * kHeight, 13);
+  const std::vector<uint8_t> keyframe = viewOf(scene, scene_width, 20, 0);
+  arl::HomingEstimator estimator(kWidth, kHeight, 0, robustParams(16));
+  for (int d : { -11, -2, 0, 5, 14 })
+  {
+    const std::vector<uint8_t> query = viewOf(scene, scene_width, 20 - d, 0);
+    const arl::HomingEstimate estimate = estimator.estimate(query.data(), keyframe.data());
+    EXPECT_NEAR(d, estimate.shift_px, kRandomTolerancePx) << "d = " << d;
+    EXPECT_DOUBLE_EQ(0.0, estimate.cost) << "d = " << d;
+  }
+}
+
+TEST(HomingEstimator, RobustCostKeepsTheShiftOfTheHalfThatDidNotChange)
+{
+  // As AHalfThatChangedDoesNotMoveTheShiftOfTheOtherHalf, but every column kept (share 1) and the
+  // robust cost: the changed columns (32..63) cost about the median at every shift, so they count about
+  // 1/2 everywhere and do not pull the minimum; the unchanged ones (3..31) cost 0 at d = 3 only.
+  const std::vector<uint8_t> keyframe = randomBytes(kWidth * kHeight, 21);
+  std::vector<uint8_t> query = shiftedRight(keyframe, kWidth, kHeight, 3);
+  const std::vector<uint8_t> other = randomBytes(kWidth * kHeight, 22);
+  for (int y = 0; y < kHeight; ++y)
+    for (int x = kWidth / 2; x < kWidth; ++x)
+      query[y * kWidth + x] = other[y * kWidth + x];
+  arl::HomingEstimator estimator(kWidth, kHeight, 0, robustParams(16));
+  const arl::HomingEstimate estimate = estimator.estimate(query.data(), keyframe.data());
+  EXPECT_NEAR(3.0, estimate.shift_px, 0.1);
+  EXPECT_EQ(61, estimate.kept_columns);  // every overlapping column
+  EXPECT_GT(estimate.cost, 0.0);         // the changed half still costs something
+  EXPECT_LT(estimate.cost, 0.5);         // ... at most 1 per column, about 1/2 for half of them
+}
+
+TEST(HomingEstimator, RobustCostOfIdenticalFlatImagesIsZero)
+{
+  // Every column cost 0: the median s is 0, the costs stay as they are (no division by 0), no shift.
+  const std::vector<uint8_t> flat(kWidth * kHeight, 90);
+  arl::HomingEstimator estimator(kWidth, kHeight, 0, robustParams(16));
+  const arl::HomingEstimate estimate = estimator.estimate(flat.data(), flat.data());
+  EXPECT_DOUBLE_EQ(0.0, estimate.shift_px);
+  EXPECT_DOUBLE_EQ(0.0, estimate.cost);
+}
+
 TEST(HomingEstimator, ContentMovedRightIsAPositiveShiftAsInTheMatching)
 {
   // The convention of ImageDifference and of Localization.shift_px: query(x) = keyframe(x - d), d > 0
@@ -207,9 +281,10 @@ TEST(HomingEstimator, EachColumnFindsItsVerticalOffset)
   EXPECT_NEAR(3.0, estimate.shift_px, kRandomTolerancePx);
   EXPECT_DOUBLE_EQ(0.0, estimate.cost);
   // Without the vertical search no shift matches: random bytes differ by 85 on average (E|a - b| for
-  // independent uniform bytes is 256 / 3).
+  // independent uniform bytes is 256 / 3), in the plain cost.
   arl::HomingParams flat;
   flat.max_vertical_shift_px = 0;
+  flat.robust_column_cost = false;
   arl::HomingEstimator level(kWidth, kHeight, 0, flat);
   EXPECT_GT(level.estimate(query.data(), keyframe.data()).cost, 60.0);
 }
@@ -221,7 +296,9 @@ TEST(HomingEstimator, MeasureHomingShiftLowersRangesTheImageCannotHold)
   const std::vector<uint8_t> scene = randomBytes(scene_width * kHeight, 51);
   const std::vector<uint8_t> keyframe = viewOf(scene, scene_width, 20, 0);
   const std::vector<uint8_t> query = viewOf(scene, scene_width, 27, 0);  // content 7 px to the left
-  arl::HomingEstimator estimator(kWidth, kHeight, 0, homingParams(31, 1.0, arl::SubpixelFit::kEquiangular));
+  arl::HomingParams lowered;  // the defaults, but 31 px
+  lowered.max_shift_px = 31;
+  arl::HomingEstimator estimator(kWidth, kHeight, 0, lowered);
   const double expected = estimator.estimate(query.data(), keyframe.data()).shift_px;
   EXPECT_NEAR(-7.0, expected, kRandomTolerancePx);
   EXPECT_DOUBLE_EQ(expected, arl::measureHomingShift(query.data(), keyframe.data(), kWidth, kHeight, 0, 100, 2));
@@ -342,12 +419,13 @@ HomingFigures homingFigures(const std::vector<double>& estimates, const std::vec
 
 TEST(HomingEstimator, LeaveOnePlaceOutOnTheStromovkaPairs)
 {
-  // scripts/evaluate_homing --cross-validate, on a smaller grid (equiangular fit): for each of the 5
-  // places, the parameters with the lowest median error on the other 4 places, scored on that place.
-  // Measured: median 0.400 px (worst place 0.560), within 1 px 0.845 (worst 0.773), right sign 0.965
-  // (worst 0.944); the floors below leave a little room. Phase correlation (cv::phaseCorrelate, Hanning
-  // window) on the same preprocessed images, per place: median 1.009 px, 0.609, 0.848: the homing
-  // estimate must stay ahead of it on the mean of every figure.
+  // scripts/evaluate_homing --cross-validate, on a smaller grid (equiangular fit, plain or robust cost):
+  // for each of the 5 places, the parameters with the lowest median error on the other 4 places, scored
+  // on that place. Measured: median 0.391 px (worst place 0.560), within 1 px 0.824 (worst 0.773), right
+  // sign 0.972 (worst 0.944) (without the robust cost in the grid: 0.400 px, 0.845, 0.965); the floors
+  // below leave a little room. Phase correlation (cv::phaseCorrelate, Hanning window) on the same
+  // preprocessed images, per place: median 1.009 px, 0.609, 0.848: the homing estimate must stay ahead of
+  // it on the mean of every figure.
   std::vector<StromovkaPair> pairs;
   struct stat info;
   if (stromovkaDir().empty() || stat((stromovkaDir() + "/pairs.csv").c_str(), &info) != 0 || !readStromovkaPairs(&pairs))
@@ -369,10 +447,12 @@ TEST(HomingEstimator, LeaveOnePlaceOutOnTheStromovkaPairs)
   for (int max_shift_px : { 16, 20 })
     for (int vertical : { 2, 3 })
       for (double share : { 0.75, 1.0 })
-      {
-        grid.push_back(homingParams(max_shift_px, share, arl::SubpixelFit::kEquiangular));
-        grid.back().max_vertical_shift_px = vertical;
-      }
+        for (bool robust : { false, true })
+        {
+          grid.push_back(homingParams(max_shift_px, share, arl::SubpixelFit::kEquiangular));
+          grid.back().max_vertical_shift_px = vertical;
+          grid.back().robust_column_cost = robust;
+        }
   std::vector<std::vector<double>> estimates(grid.size());  // [setting][pair]
   std::vector<double> truths, phase_correlation;
   cv::Mat window;
@@ -427,10 +507,10 @@ TEST(HomingEstimator, LeaveOnePlaceOutOnTheStromovkaPairs)
     phase_mean.median_error_px += phase.median_error_px / 5.0;
     phase_mean.within_1px += phase.within_1px / 5.0;
     phase_mean.right_sign += phase.right_sign / 5.0;
-    std::printf("place %d: max_shift_px %d, max_vertical_shift_px %d, kept_column_share %.2f: median %.3f px, "
-                "within 1 px %.3f, right sign %.3f\n",
+    std::printf("place %d: max_shift_px %d, max_vertical_shift_px %d, kept_column_share %.2f, robust %d: median %.3f "
+                "px, within 1 px %.3f, right sign %.3f\n",
                 place, grid[chosen].max_shift_px, grid[chosen].max_vertical_shift_px, grid[chosen].kept_column_share,
-                held_out.median_error_px, held_out.within_1px, held_out.right_sign);
+                grid[chosen].robust_column_cost ? 1 : 0, held_out.median_error_px, held_out.within_1px, held_out.right_sign);
   }
   std::printf("held out: median %.3f px (worst %.3f), within 1 px %.3f (worst %.3f), right sign %.3f (worst %.3f); "
               "phase correlation %.3f px, %.3f, %.3f\n",

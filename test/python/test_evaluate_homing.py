@@ -104,6 +104,23 @@ class RealPairsTest(unittest.TestCase):
         median = float(package.split("median")[1].split("px")[0])
         self.assertLess(median, float(phase.split("median")[1].split("px")[0]))
 
+    def test_robust_column_is_measured_and_a_bad_spec_refused(self):
+        # homing_pairs --homing M:V:S:FIT:robust adds a column named homing_M_V_S_FIT_robust; anything else
+        # in the fifth field is refused with the expected form, before any image is read.
+        tool = built_executable("homing_pairs")
+        pairs = evaluate_homing.default_pairs()
+        if tool is None or not os.path.isfile(pairs):
+            self.skipTest("needs the built homing_pairs (source devel/setup.bash) and %s" % pairs)
+        rows = evaluate_homing.run_tool(tool, pairs, 1024.0, ["16:2:1:equiangular", "16:2:1:equiangular:robust"], [])
+        self.assertEqual(len(rows), 660)
+        self.assertIn("homing_16_2_1_equiangular_robust", rows[0])
+        # the flag reaches the estimator: the robust costs move the subpixel shift of most pairs
+        differing = sum(1 for r in rows if r["homing_16_2_1_equiangular"] != r["homing_16_2_1_equiangular_robust"])
+        self.assertGreater(differing, 330, "robust and plain agree on %d of 660 pairs" % (660 - differing))
+        with self.assertRaises(evaluate_homing.EvaluationError) as caught:
+            evaluate_homing.run_tool(tool, pairs, 1024.0, ["16:2:1:equiangular:huber"], [])
+        self.assertIn("M:V:S[:parabola|equiangular[:robust]]", str(caught.exception))
+
 
 if __name__ == "__main__":
     unittest.main()
