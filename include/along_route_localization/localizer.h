@@ -105,11 +105,14 @@ struct LocalizerParams
   int cruise_speed_frames = 100;
   DtwParams dtw;                      ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
-  /// When the track is lost, the global search starts from the last relocalization_rows queries, compared
-  /// again with the whole map, instead of an empty window: they are frames the robot has seen, and the
-  /// loss was judged on them (lost_window_frames). The rows of the lost track are dropped: they covered
-  /// only its band. 0 = start from an empty window. At most K - 1 are used. That first frame computes
-  /// their whole-map rows too, so it costs several global frames (doc/results.md, Performance).
+  /// The newest relocalization_rows queries, compared again with the whole map: (1) when the track is
+  /// lost, the global search starts from them instead of an empty window (they are frames the robot has
+  /// seen, and the loss was judged on them; the rows of the lost track are dropped: they covered only its
+  /// band; at most K - 1 are used); (2) while tracking, whenever they alone do not support the track's
+  /// end, so that a robot carried elsewhere is found there as soon as they show it, not K / 2 frames later
+  /// when the whole window stops supporting the old place (recentCheck). Each such frame computes their
+  /// whole-map rows (one, when the frame before was checked too), so it costs about as much as a global
+  /// frame (doc/results.md, Performance). 0 = neither: an empty window after a loss, no check.
   int relocalization_rows = 8;
   /// Where the robot starts, on the first frame after construction or reset() (a new map, time going
   /// back in a looping bag). >= 0: at this keyframe (teach and repeat: the repeat starts where the teach
@@ -342,6 +345,12 @@ private:
   /// kCoasting: the check for another place (trackContradicted), confirmed -> moveTrackTo; else the answer
   /// is the dead-reckoned coast_position_.
   void coastStep(Frame* frame, SequenceMatch* match, bool check_started);
+  /// kTracking, on a new view: when the newest lost_window_frames rows alone do not support the track's end
+  /// (its confidence over them below confidence_threshold), they are compared with the whole map
+  /// (trackContradicted); once init_confirm_frames such checks in a row found the same place moving as the
+  /// robot can, the track moves there (moveTrackTo). The whole window, K rows, lags K / 2 frames behind a
+  /// robot that was carried elsewhere; its newest rows do not.
+  void recentCheck(Frame* frame, SequenceMatch* match);
   /// Still tracking after the handler: the cruise speed's sample and the last match.
   void followTrack(const Frame& frame, int keyframe);
   /// The result of the frame: keyframe (dead-reckoned while lost), confidence, status, homing.
@@ -397,7 +406,9 @@ private:
   /// mapping to at least confidence_threshold (matchConfidence, the evidence being the distinct views
   /// among those rows over their number). Weak evidence (no place stands out) is not contrary evidence.
   /// go_on: the check of the last frame goes on (only this frame's row is new), else it starts afresh.
-  bool trackContradicted(int track_keyframe, bool go_on);
+  /// The rows weighed: the newest `window` recent queries' whole-map rows, kept in `ring` (coasting: K rows in
+  /// check_ring_; recentCheck: lost_window_frames rows in recent_ring_).
+  bool trackContradicted(int track_keyframe, bool go_on, int window, CostRingBuffer* ring);
   /// How much cheaper per row, by chance, the best path at a wrong place of this map is than a stretch of
   /// track-sized ends at another wrong place, over `rows` rows: measured once per map and parameters on
   /// kChanceWindows stretches of the map's own keyframes taken as queries, their true places left out (the
@@ -408,14 +419,17 @@ private:
   /// covered only the track's band) and the dead-reckoned answer goes on from there at coastSpeed()
   /// (dead_reckon_while_lost). Also for a gap that restarts the search (skipFrames).
   void loseTrack(double track_position);
-  /// The checks while coasting confirmed `keyframe`, another place: the track moves there
+  /// The checks (coasting, or recentCheck) confirmed `keyframe`, another place: the track moves there
   /// (transition(kTracking, keyframe)), the check's whole-map rows becoming the ring buffer's.
-  void moveTrackTo(int keyframe);
+  void moveTrackTo(int keyframe, const CostRingBuffer& check);
   /// Appends to `target` the whole-map rows of the newest `count` (at most recent_count_) recent queries,
   /// oldest first: a global search after a loss, and trackContradicted's check.
   void replayRecentQueries(int count, CostRingBuffer* target);
   /// Keyframes per frame dead reckoning moves on at: the cruise speed, in [0, max_step].
   double coastSpeed() const;
+  /// Where dead reckoning puts the robot this frame while the window holds no evidence: the last
+  /// dead-reckoned position (or the last answer) plus coastSpeed().
+  double reckonedPosition(bool first_from_start) const;
 
   std::shared_ptr<const RouteMap> map_;
   LocalizerParams params_;
@@ -427,6 +441,7 @@ private:
   std::vector<uint8_t> coarse_query_;
   std::vector<uint8_t> keyframe_census_;   // census codes of all keyframes, when that cost is used
   std::vector<uint8_t> query_census_;
+  double reckon_position_ = -1.0;          // dead-reckoned position while the window ties; < 0: not
   double run_position_ = -1.0;             // reported position inside the current run; < 0: not in one
   double run_velocity_ = 0.0;              // keyframes per frame when the current run was entered
   ContrastRunsScratch contrast_scratch_;
@@ -486,6 +501,9 @@ private:
   };
   std::vector<RecentQuery> recent_queries_;
   int recent_count_ = 0, recent_next_ = 0;
+  CostRingBuffer recent_ring_;             // recentCheck's whole-map rows of the newest queries
+  bool recent_checking_ = false;           // the last new view was checked against the whole map
+  GlobalConfirmation recent_confirmation_; // of those checks: another place, confirmed
   CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
   int contradicting_place_ = -1;         // the place the last trackContradicted found
   GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed

@@ -181,6 +181,8 @@ void Localizer::start()
   frames_since_confident_ = 0;
   start_check_ = false;
   rows_since_start_ = views_since_start_ = 0;
+  recent_checking_ = false;
+  recent_confirmation_.clear();
   if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
     return;
   state_ = State::kTracking;
@@ -208,6 +210,7 @@ void Localizer::setParams(const LocalizerParams& params)
   dtw_.setParams(params_.dtw);
   confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
   check_confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
+  recent_confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
   loss_.configure(params_.lost_after_frames, params_.lost_window_frames);
   const int rows = std::max(params_.ring_buffer_rows,
                             params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : 0);
@@ -338,6 +341,7 @@ void Localizer::reset()
   last_path_.clear();
   entered_query_.release();
   run_position_ = -1.0;
+  reckon_position_ = -1.0;
   tracked_frames_ = 0;
   cruise_speed_ = 1.0;
   cruise_samples_ = 1;
@@ -538,7 +542,7 @@ void Localizer::skipFrames(int count)
     confirmation_.clear();
     loss_.clear();
     last_path_.clear();
-    run_position_ = -1.0;
+    run_position_ = reckon_position_ = -1.0;
     recent_count_ = recent_next_ = 0;
     return;
   }
@@ -705,10 +709,16 @@ SequenceMatch Localizer::matchSequence(const Frame& frame)
                        map_stats_.run.data(), first_choice, last_choice, prior, path_start);
   }
   last_path_ = match.path;
-  // A window without evidence (featureless rows only, e.g. a tunnel longer than K frames) ties every
-  // end keyframe: dead-reckon at the nominal speed instead of taking the first of the ties.
-  if (!frame.global && dtw_.lastAccumulated()[frame.predicted - frame.first] <= match.cost)
-    match.keyframe = frame.predicted;
+  // A window without evidence (featureless rows only: a blinded camera, a tunnel longer than K frames)
+  // ties every end keyframe: dead-reckon from the last answer at the robot's own speed (its cruise speed,
+  // fractional positions carried from frame to frame) instead of taking the first of the ties.
+  reckon_position_ = frame.global ? -1.0 : reckonedPosition(frame.first_from_start);
+  const int reckoned = static_cast<int>(std::lround(reckon_position_));
+  if (frame.global || reckoned < frame.first || reckoned >= frame.first + frame.width ||
+      dtw_.lastAccumulated()[reckoned - frame.first] > match.cost)
+    reckon_position_ = -1.0;  // the evidence chose: the DTW's answer
+  else
+    match.keyframe = reckoned;
   if (!frame.global && params_.method == SequenceMethod::kOnlineDtw && params_.run_dead_reckoning)
     match.keyframe = keyframeThroughRun(match.keyframe);
   else
@@ -767,7 +777,40 @@ void Localizer::trackStep(Frame* frame, SequenceMatch* match, bool confident)
   }
   if (state_ == State::kCoasting)
     coastStep(frame, match, check_started);
+  else if (state_ == State::kTracking)
+    recentCheck(frame, match);
 }
+
+void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
+{
+  const int rows = params_.relocalization_rows;
+  if (rows <= 0 || params_.method != SequenceMethod::kOnlineDtw || frame->global || frame->checking_start ||
+      !frame->informative || frame->repeated || ring_.size() < rows || recent_count_ < rows)
+    return;  // off, or the start's own check is on, or no new view (a check under way goes on with the next
+             // one), or too few rows to weigh
+  // Do the newest rows alone support the track's end? The whole window may still, for K / 2 frames after
+  // the robot was carried elsewhere.
+  const SequenceMatch newest = dtw_.match(ring_, frame->first, frame->width, rows, false, map_stats_.run.data(),
+                                          match->keyframe, match->keyframe);
+  if (matchConfidence(newest, true, 1.0) >= params_.confidence_threshold)
+  {
+    recent_checking_ = false;
+    recent_confirmation_.clear();
+    return;
+  }
+  // Contradicted: published lost (at the track's answer, confidence 0) until the checks confirm the other
+  // place and the track moves there.
+  frame->contradicted = trackContradicted(match->keyframe, recent_checking_, rows, &recent_ring_);
+  recent_checking_ = true;
+  if (recent_confirmation_.update(frame->contradicted ? contradicting_place_ : -1, frame->contradicted, true))
+  {
+    match->keyframe = contradicting_place_;
+    moveTrackTo(contradicting_place_, recent_ring_);
+    frame->relocated = true;
+    frame->contradicted = false;
+  }
+}
+
 
 void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started)
 {
@@ -776,11 +819,13 @@ void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started
     // Each frame may bring the evidence of another place; the track moves there once init_confirm_frames
     // checks in a row were contradicted by places that move along the route like the robot can (a
     // single check's winner is a wrong place now and then).
-    frame->contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), !check_started);
+    // The check's window grows to K rows, as a global search's.
+    frame->contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), !check_started,
+                                            params_.ring_buffer_rows, &check_ring_);
     if (check_confirmation_.update(frame->contradicted ? contradicting_place_ : -1, frame->contradicted,
                                    frame->informative))
     {
-      moveTrackTo(contradicting_place_);
+      moveTrackTo(contradicting_place_, check_ring_);
       match->keyframe = contradicting_place_;
       frame->relocated = true;
       frame->contradicted = false;
@@ -817,8 +862,11 @@ LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double c
   LocalizationResult result;
   result.query_informative = frame.informative;
   result.confidence = confidence;
-  // Contradicted (published lost): the place that contradicts, unless dead_reckon_while_lost.
-  result.keyframe = frame.contradicted && !params_.dead_reckon_while_lost ? contradicting_place_ : keyframe;
+  // Contradicted (published lost): while coasting the place that contradicts, unless dead_reckon_while_lost;
+  // while tracking (recentCheck) the track's answer, until the checks confirm the other place.
+  result.keyframe = frame.contradicted && state_ == State::kCoasting && !params_.dead_reckon_while_lost ?
+                        contradicting_place_ :
+                        keyframe;
   // Lost: confidence 0 until the global search confirms a place (the frame that confirms it answers there);
   // the answer is the global search's guess, or (dead_reckon_while_lost) where the robot went at the
   // cruise speed since the loss.
@@ -829,6 +877,13 @@ LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double c
     {
       lost_position_ = std::min(static_cast<double>(n - 1), lost_position_ + coastSpeed());
       result.keyframe = static_cast<int>(std::lround(lost_position_));
+    }
+    else if (frame.contradicted && state_ == State::kTracking && last_confident_ >= 0 &&
+             params_.dead_reckon_while_lost)
+    {
+      // Contradicted while tracking: where the robot went at the cruise speed since the last confident answer.
+      result.keyframe = static_cast<int>(
+          std::lround(std::min(static_cast<double>(n - 1), last_confident_ + coastSpeed() * frames_since_confident_)));
     }
   }
   result.status = frame.contradicted ? LocalizationStatus::kLost : status();  // lost: contradicted, not unconfirmed
@@ -863,6 +918,8 @@ void Localizer::transition(State next, int place)
 {
   // Every change of state_ but the initial one (start()) comes here; what each state needs on entry:
   state_ = next;
+  recent_checking_ = false;  // recentCheck starts afresh in any new state
+  recent_confirmation_.clear();
   switch (next)
   {
     case State::kInitializing:  // the baseline after a gap (skipFrames, which clears the window)
@@ -877,7 +934,7 @@ void Localizer::transition(State next, int place)
       frames_since_confident_ = 0;
       lost_position_ = -1.0;
       last_path_.clear();
-      run_position_ = -1.0;
+      run_position_ = reckon_position_ = -1.0;
       tracked_frames_ = 0;
       start_check_ = false;
       confirmation_.clear();
@@ -897,6 +954,14 @@ void Localizer::transition(State next, int place)
   }
 }
 
+double Localizer::reckonedPosition(bool first_from_start) const
+{
+  if (first_from_start)
+    return last_match_;  // the first frame of a known start is at the start keyframe
+  const double from = reckon_position_ >= 0.0 ? reckon_position_ : static_cast<double>(last_match_);
+  return std::min(static_cast<double>(map_->size() - 1), from + coastSpeed());
+}
+
 double Localizer::coastSpeed() const
 {
   return std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, cruise_speed_));
@@ -908,32 +973,31 @@ void Localizer::loseTrack(double track_position)
   transition(State::kLost);
 }
 
-bool Localizer::trackContradicted(int track_keyframe, bool go_on)
+bool Localizer::trackContradicted(int track_keyframe, bool go_on, int window, CostRingBuffer* ring)
 {
   const int n = static_cast<int>(map_->size());
-  const int window = params_.ring_buffer_rows;  // grows to K rows, as a global search's window
   if (recent_count_ < 1)
     return false;  // nothing to weigh
-  if (go_on && check_ring_.size() > 0 && check_ring_.capacity() == window && check_ring_.maxWidth() == n)
+  if (go_on && ring->size() > 0 && ring->capacity() == window && ring->maxWidth() == n)
   {
-    replayRecentQueries(1, &check_ring_);  // the check goes on (coasting): only the newest frame's row is new
+    replayRecentQueries(1, ring);  // the check goes on: only the newest frame's row is new
   }
   else
   {
-    if (check_ring_.capacity() != window || check_ring_.maxWidth() != n)
-      check_ring_.resize(window, n);
-    check_ring_.clear();
-    replayRecentQueries(std::min(recent_count_, window), &check_ring_);
+    if (ring->capacity() != window || ring->maxWidth() != n)
+      ring->resize(window, n);
+    ring->clear();
+    replayRecentQueries(std::min(recent_count_, window), ring);
   }
-  const int rows = check_ring_.size();
-  const SequenceMatch elsewhere = dtw_.match(check_ring_, 0, n, rows, false, map_stats_.run.data());
+  const int rows = ring->size();
+  const SequenceMatch elsewhere = dtw_.match(*ring, 0, n, rows, false, map_stats_.run.data());
   contradicting_place_ = elsewhere.keyframe;
   if (elsewhere.keyframe < 0 ||
       std::abs(map_stats_.run[elsewhere.keyframe] - map_stats_.run[track_keyframe]) <= params_.dtw.exclusion_radius)
     return false;  // the sequence still ends at the track's place
   // As a global search confirms a place: its confidence weighed by the distinct views among K rows.
   const double evidence =
-      std::min(1.0, static_cast<double>(check_ring_.distinctViews(elsewhere.rows)) / std::max(1, window));
+      std::min(1.0, static_cast<double>(ring->distinctViews(elsewhere.rows)) / std::max(1, window));
   if (matchConfidence(elsewhere, true, evidence) < params_.confidence_threshold)
     return false;  // no place stands out: weak evidence
   if (!params_.contradiction_chance_margin)
@@ -962,16 +1026,16 @@ void Localizer::replayRecentQueries(int count, CostRingBuffer* target)
   }
 }
 
-void Localizer::moveTrackTo(int keyframe)
+void Localizer::moveTrackTo(int keyframe, const CostRingBuffer& check)
 {
   // The check's whole-map rows become the window (they cover any band); the track starts afresh there.
   ring_.clear();
   const int n = static_cast<int>(map_->size());
-  for (int age = check_ring_.size() - 1; age >= 0; --age)
+  for (int age = check.size() - 1; age >= 0; --age)
   {
-    float* row = ring_.appendRow(0, n, check_ring_.repeatedQuery(age));
+    float* row = ring_.appendRow(0, n, check.repeatedQuery(age));
     for (int k = 0; k < n; ++k)
-      row[k] = check_ring_.at(age, k, 0.0f);
+      row[k] = check.at(age, k, 0.0f);
   }
   transition(State::kTracking, keyframe);
 }

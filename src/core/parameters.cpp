@@ -231,7 +231,7 @@ std::vector<ParameterSpec> makeTable()
                         "Frames over which the robot's cruise speed is averaged (0: the nominal speed)",
                         FIELD(localizer.cruise_speed_frames)));
   t.push_back(numberRow("relocalization_rows", loc, 0, 1000, "frames",
-                        "Recent frames a global search after a loss starts from (0: an empty window)",
+                        "Recent frames searched over the whole map after a loss and while they do not support the track (0: neither)",
                         FIELD(localizer.relocalization_rows)));
   t.push_back(numberRow("motion_prior_cap", loc, 0, 1000, "keyframes",
                         "Distance beyond which the motion prior's cost stays flat", FIELD(localizer.motion_prior_cap)));

@@ -1014,6 +1014,7 @@ TEST(Localizer, DoesNotJumpToAnotherPlaceWhileTracking)
   EXPECT_EQ(90, limited.last.keyframe);
   arl::LocalizerParams unlimited = plain;
   unlimited.max_jump_ahead = 1000;
+  unlimited.relocalization_rows = 0;  // the check while tracking would publish the frames before the jump lost
   const JumpRun direct = runWithAJump(unlimited, params, keyframeRange(0, 20), keyframeRange(45, 90));
   EXPECT_GE(direct.jumps, 1);
   EXPECT_FALSE(direct.lost);
@@ -1231,6 +1232,31 @@ TEST(Localizer, LongTunnelDoesNotMakeTheTrackLost)
     right += r.keyframe == i ? 1 : 0;
   }
   EXPECT_GE(right, 15) << "of 20 frames after the tunnel";
+}
+
+TEST(Localizer, BlindedTheAnswerMovesAtTheRobotsOwnSpeed)
+{
+  // The robot drives at half a keyframe per frame (every keyframe seen twice) along a textured map; for
+  // 80 frames (keyframes 60..99, K = 30 frames x 2.7) its camera is blinded (featureless queries: glare,
+  // fog, night), so most of the way no row in the window says where it is. The answer must move on at the
+  // robot's own speed (its cruise speed, about 0.5 after 120 frames at that speed), not one keyframe per
+  // frame: at the nominal speed it would end the blind stretch up to 40 keyframes ahead.
+  const auto map = syntheticMap(140);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i < 120; ++i)
+    localizer.process(keyframeCopy(*map, i / 2));
+  EXPECT_NEAR(0.5, localizer.cruiseSpeed(), 0.05) << "before the blind stretch";
+  const cv::Mat blind(32, 64, CV_8UC1, cv::Scalar(128));
+  int worst = 0;
+  for (int i = 120; i < 200; ++i)
+  {
+    const arl::LocalizationResult r = localizer.process(blind);
+    ASSERT_FALSE(r.query_informative);
+    ASSERT_EQ(LocalizationStatus::kTracking, r.status) << "frame " << i << " blinded";
+    worst = std::max(worst, std::abs(r.keyframe - i / 2));
+  }
+  // 80 frames at the cruise speed c: |80 c - 40| keyframes off, at most 4 for c within 0.5 +- 0.05.
+  EXPECT_LE(worst, 4) << "keyframes between the answer and the truth while blinded";
 }
 
 TEST(Localizer, FeaturelessQueryIsReportedUninformative)
@@ -1629,33 +1655,37 @@ TEST(Localizer, KidnappedRelocalizes)
   const int frames = run.framesToRelocalize(80);
   const long wrong = std::count(run.marks.begin() + 80, run.marks.end(), 'x');
   std::printf("kidnapped: right again after %d frames, %ld frames tracking the wrong place\n", frames, wrong);
-  EXPECT_LE(frames, 45);  // measured 30: 25 frames on the old track, 5 lost (relocalizing, confirming)
-  EXPECT_LE(wrong, 35);   // measured 25
+  // measured 16 and 12 (30 and 25 before the check while tracking, TheNewestFramesFindTheRobot... below)
+  EXPECT_LE(frames, 22);
+  EXPECT_LE(wrong, 18);
 }
 
-TEST(Localizer, TheSearchAfterALossStartsFromTheFramesTheLossWasJudgedOn)
+TEST(Localizer, TheNewestFramesFindTheRobotWhereItWasCarried)
 {
   SKIP_WITHOUT_NORDLAND();
-  // The kidnapping above. When the track is lost (25 frames after the jump), the last 8 frames show the
-  // new place: the global search replays them over the whole map (relocalization_rows 8) and confirms
-  // it sooner than from an empty window (0), where it waits for min_init_frames new rows, then
-  // init_confirm_frames confident answers. Nothing changes before the loss.
+  // The kidnapping above. With relocalization_rows 8, as soon as the newest 8 frames no longer support the
+  // track they are compared with the whole map (recentCheck): they show the new place, published lost
+  // while init_confirm_frames checks confirm it, then the track moves there. With 0 the whole window has
+  // to stop supporting the old place (about K / 2 frames) before the loss detection fires, and the global
+  // search then starts from an empty window. On the route before the jump, nothing changes.
   std::vector<QueryFrame> queries;
   appendStretch(&queries, 20, 80);
   appendStretch(&queries, 200, 80);
-  arl::LocalizerParams empty_window;
-  empty_window.relocalization_rows = 0;
-  const LostAndFound replayed = runQueries(queries);
-  const LostAndFound restarted = runQueries(queries, empty_window);
-  const int lost_at =
-      static_cast<int>(std::find(replayed.marks.begin(), replayed.marks.end(), 'l') - replayed.marks.begin());
-  std::printf("lost at frame %d; right again after %d frames replaying the last 8, %d from an empty window\n",
-              lost_at, replayed.framesToRelocalize(80), restarted.framesToRelocalize(80));
-  ASSERT_GT(lost_at, 80);
-  ASSERT_LT(lost_at, static_cast<int>(replayed.marks.size()));
-  EXPECT_TRUE(std::equal(replayed.marks.begin(), replayed.marks.begin() + lost_at + 1, restarted.marks.begin()));
-  // measured 30 against 40: lost for 5 frames instead of 15
-  EXPECT_LE(replayed.framesToRelocalize(80) + 5, restarted.framesToRelocalize(80));
+  arl::LocalizerParams no_check;
+  no_check.relocalization_rows = 0;
+  const LostAndFound checked = runQueries(queries);
+  const LostAndFound unchecked = runQueries(queries, no_check);
+  const auto firstLost = [](const LostAndFound& run) {
+    return static_cast<int>(std::find(run.marks.begin(), run.marks.end(), 'l') - run.marks.begin());
+  };
+  std::printf("kidnapped at frame 80: first lost %d / %d, right again after %d / %d frames (relocalization_rows "
+              "8 / 0)\n", firstLost(checked), firstLost(unchecked), checked.framesToRelocalize(80),
+              unchecked.framesToRelocalize(80));
+  EXPECT_TRUE(std::equal(checked.marks.begin(), checked.marks.begin() + 80, unchecked.marks.begin()));
+  EXPECT_GT(firstLost(checked), 80);
+  EXPECT_LT(firstLost(checked), firstLost(unchecked));
+  // measured 16 against 40
+  EXPECT_LE(checked.framesToRelocalize(80) + 15, unchecked.framesToRelocalize(80));
 }
 
 std::vector<QueryFrame> offRouteQueries()
@@ -1738,7 +1768,8 @@ TEST(Localizer, GoesOnThroughCameraDropouts)
   // The winter stretch at 1 frame per second, with three dropouts of 15 frames while the train drives
   // on (frames 61..75, 121..135, 231..245 never arrive; the stamps say so). Filled in, each missed frame
   // is a row without evidence and the track goes on through the gap. Not filled in, the track continues
-  // from where it was, 16 keyframes behind, until it is lost and found again.
+  // from where it was, 16 keyframes behind, until the newest frames move it (recentCheck; measured 13
+  // wrong answers, 47 when the loss detection and a global search had to find the place again).
   std::vector<QueryFrame> queries;
   const std::vector<cv::Mat>& winter = preprocessedStretch("winter");
   for (int i = 0; i < 300; ++i)
@@ -1759,7 +1790,7 @@ TEST(Localizer, GoesOnThroughCameraDropouts)
               wrongAfterGaps(filled), lost, wrongAfterGaps(unfilled));
   EXPECT_LE(wrongAfterGaps(filled), 3);
   EXPECT_EQ(0, lost);
-  EXPECT_GE(wrongAfterGaps(unfilled), wrongAfterGaps(filled) + 20);
+  EXPECT_GE(wrongAfterGaps(unfilled), wrongAfterGaps(filled) + 10);
 }
 
 TEST(Localizer, ARobotThatStoodStillThroughADropoutIsNotMovedOn)

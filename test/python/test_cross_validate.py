@@ -74,6 +74,18 @@ class CalibrationTest(unittest.TestCase):
         self.assertAlmostEqual(offset, -1.0, delta=0.1)
         self.assertAlmostEqual(slope, 6.0, delta=0.3)
 
+    def test_within_one_on_frames_neither_dark_nor_stationary(self):
+        # 4 queries: 0 right, 1 wrong and dark, 2 wrong and stationary, 3 wrong: 1 of 4 within one overall;
+        # of the 2 frames neither dark nor stationary (0 and 3), 1
+        truth = {q: {"keyframe": q, "exact": None, "shift": None, "heading": None, "dark": q == 1,
+                     "stationary": q == 2} for q in range(4)}
+        results = {"query_index": [0, 1, 2, 3], "keyframe": [0, 9, 9, 9], "confidence": [0.5] * 4,
+                   "shift_px": [0.0] * 4, "homing_angle_rad": [0.0] * 4,
+                   "status": ["tracking"] * 4}
+        figures = cross_validate.figures_of(evaluate.evaluate(results, truth))
+        self.assertAlmostEqual(figures["within_one"], 0.25)
+        self.assertAlmostEqual(figures["within_one_observable"], 0.5)
+
     def test_lost_answers_publish_zero(self):
         p = cross_validate.calibrated([0.0, 0.5], [False, True], -1.0, 4.0)
         self.assertAlmostEqual(p[0], 1.0 / (1.0 + np.exp(1.0)))
