@@ -87,6 +87,17 @@ void rampPair(std::vector<uint8_t>* query, std::vector<uint8_t>* keyframe)
     }
 }
 
+/// The keyframe moved 3 px right, its right half (columns 32..63) replaced by other random bytes.
+std::vector<uint8_t> movedWithItsRightHalfChanged(const std::vector<uint8_t>& keyframe)
+{
+  std::vector<uint8_t> query = shiftedRight(keyframe, kWidth, kHeight, 3);
+  const std::vector<uint8_t> other = randomBytes(kWidth * kHeight, 22);
+  for (int y = 0; y < kHeight; ++y)
+    for (int x = kWidth / 2; x < kWidth; ++x)
+      query[y * kWidth + x] = other[y * kWidth + x];
+  return query;
+}
+
 }  // namespace
 
 TEST(HomingEstimator, CostsOfARampByHand)
@@ -187,11 +198,7 @@ TEST(HomingEstimator, RobustCostKeepsTheShiftOfTheHalfThatDidNotChange)
   // robust cost: the changed columns (32..63) cost about the median at every shift, so they count about
   // 1/2 everywhere and do not pull the minimum; the unchanged ones (3..31) cost 0 at d = 3 only.
   const std::vector<uint8_t> keyframe = randomBytes(kWidth * kHeight, 21);
-  std::vector<uint8_t> query = shiftedRight(keyframe, kWidth, kHeight, 3);
-  const std::vector<uint8_t> other = randomBytes(kWidth * kHeight, 22);
-  for (int y = 0; y < kHeight; ++y)
-    for (int x = kWidth / 2; x < kWidth; ++x)
-      query[y * kWidth + x] = other[y * kWidth + x];
+  const std::vector<uint8_t> query = movedWithItsRightHalfChanged(keyframe);
   arl::HomingEstimator estimator(kWidth, kHeight, 0, robustParams(16));
   const arl::HomingEstimate estimate = estimator.estimate(query.data(), keyframe.data());
   EXPECT_NEAR(3.0, estimate.shift_px, 0.1);
@@ -254,11 +261,7 @@ TEST(HomingEstimator, AHalfThatChangedDoesNotMoveTheShiftOfTheOtherHalf)
   // The neighbours d = 2 and d = 4 compare each unchanged column with its left or right neighbour,
   // nearly the same pairs of bytes: the subpixel offset stays small.
   const std::vector<uint8_t> keyframe = randomBytes(kWidth * kHeight, 21);
-  std::vector<uint8_t> query = shiftedRight(keyframe, kWidth, kHeight, 3);
-  const std::vector<uint8_t> other = randomBytes(kWidth * kHeight, 22);
-  for (int y = 0; y < kHeight; ++y)
-    for (int x = kWidth / 2; x < kWidth; ++x)
-      query[y * kWidth + x] = other[y * kWidth + x];
+  const std::vector<uint8_t> query = movedWithItsRightHalfChanged(keyframe);
   arl::HomingEstimator estimator(kWidth, kHeight, 0, homingParams(16, 0.4, arl::SubpixelFit::kEquiangular));
   const arl::HomingEstimate estimate = estimator.estimate(query.data(), keyframe.data());
   EXPECT_NEAR(3.0, estimate.shift_px, 0.1);
