@@ -62,6 +62,36 @@ class CrossValidateTest(unittest.TestCase):
             evaluate_homing.cross_validate([row("1", 1.0, a=1.0)], ["a"])
 
 
+class ResolutionScaleTest(unittest.TestCase):
+    def test_grid_ranges_scale_and_the_rest_does_not(self):
+        # 3 shifts x 5 vertical ranges x 4 shares x 2 fits x 2 costs = 240 specs at any scale; at scale 2
+        # the first is 12 px x 2 = 24 with 0 rows, the last 20 x 2 = 40 px with 4 x 2 = 8 rows.
+        once, twice = evaluate_homing.grid_specs(1), evaluate_homing.grid_specs(2)
+        self.assertEqual(len(once), 240)
+        self.assertEqual(len(twice), 240)
+        self.assertEqual(once[0], "12:0:0.5:parabola")
+        self.assertEqual(twice[0], "24:0:0.5:parabola")
+        self.assertEqual(twice[-1], "40:8:1:equiangular:robust")
+        self.assertIn("32:4:1:equiangular:robust", twice)  # the default (16 px, 2 rows) at 128 px
+
+    def test_errors_in_px_of_the_64_px_image(self):
+        # At 256 px (scale 4) a true shift of 10 px is 2.5 px of the 64-px image; an estimate of 11 px
+        # (error 1 px at 256) is 2.75 (error 0.25); -6 px against a true -4: error 0.5 at 64 px.
+        rows = evaluate_homing.to_64px([row("1", 10.0, a=11.0), row("1", -4.0, a=-6.0)], 4)
+        self.assertEqual(rows[0]["place"], "1")
+        self.assertAlmostEqual(float(rows[0]["true_shift_px"]), 2.5)
+        self.assertAlmostEqual(float(rows[0]["a"]), 2.75)
+        # errors 0.25 and 0.5: median 0.375, both within 1 px; |true| 2.5 and 1.0 >= 1 px, both right
+        self.assertEqual(tuple(round(v, 9) for v in evaluate_homing.figures(rows, "a")), (0.375, 1.0, 1.0))
+
+    def test_a_scale_below_one_is_refused(self):
+        with contextlib.redirect_stderr(io.StringIO()) as err:
+            with self.assertRaises(SystemExit) as caught:
+                evaluate_homing.main(["--resolution-scale", "0"])
+        self.assertEqual(caught.exception.code, 2)
+        self.assertIn("--resolution-scale must be a positive integer", err.getvalue())
+
+
 class SyntheticPairsTest(unittest.TestCase):
     def test_repeat_frames_against_their_teach_frames(self):
         with tempfile.TemporaryDirectory() as tmp:
@@ -103,6 +133,29 @@ class RealPairsTest(unittest.TestCase):
         phase = next(line for line in lines if line.strip().startswith("phase_correlation "))
         median = float(package.split("median")[1].split("px")[0])
         self.assertLess(median, float(phase.split("median")[1].split("px")[0]))
+
+    def test_twice_the_resolution_reports_px_of_the_64_px_image(self):
+        # --resolution-scale 2: preprocessed at 128x64, the default search doubled (32 px, 4 rows), and the
+        # true shifts written to --csv are those of the 64-px image (1024-px shift x 64 / 1024), not 128's.
+        tool = built_executable("homing_pairs")
+        pairs = evaluate_homing.default_pairs()
+        if tool is None or not os.path.isfile(pairs):
+            self.skipTest("needs the built homing_pairs (source devel/setup.bash) and %s" % pairs)
+        with open(pairs) as f:
+            truth = {(r["map_image"], r["query_image"]): float(r["true_shift_px"]) * 64.0 / 1024.0
+                     for r in csv.DictReader(f)}
+        with tempfile.TemporaryDirectory() as tmp:
+            out_csv = os.path.join(tmp, "rows.csv")
+            out = io.StringIO()
+            with contextlib.redirect_stdout(out):
+                self.assertEqual(evaluate_homing.main(["--tool", tool, "--resolution-scale", "2", "--csv", out_csv]), 0)
+            with open(out_csv) as f:
+                rows = list(csv.DictReader(f))
+        self.assertIn("Preprocessed at 128x64 px", out.getvalue())
+        self.assertIn("homing_32_4_1_equiangular_robust (package)", out.getvalue())
+        self.assertEqual(len(rows), 660)
+        for r in rows:
+            self.assertAlmostEqual(float(r["true_shift_px"]), truth[(r["map_image"], r["query_image"])], places=3)
 
     def test_robust_column_is_measured_and_a_bad_spec_refused(self):
         # homing_pairs --homing M:V:S:FIT:robust adds a column named homing_M_V_S_FIT_robust; anything else
