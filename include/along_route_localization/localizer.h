@@ -503,6 +503,7 @@ private:
   int recent_count_ = 0, recent_next_ = 0;
   CostRingBuffer recent_ring_;             // recentCheck's whole-map rows of the newest queries
   bool recent_checking_ = false;           // the last new view was checked against the whole map
+  int recent_unanswered_ = 0;              // checks in a row that found no place elsewhere
   GlobalConfirmation recent_confirmation_; // of those checks: another place, confirmed
   CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
   int contradicting_place_ = -1;         // the place the last trackContradicted found

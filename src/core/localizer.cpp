@@ -182,6 +182,7 @@ void Localizer::start()
   start_check_ = false;
   rows_since_start_ = views_since_start_ = 0;
   recent_checking_ = false;
+  recent_unanswered_ = 0;
   recent_confirmation_.clear();
   if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
     return;
@@ -785,9 +786,19 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
 {
   const int rows = params_.relocalization_rows;
   if (rows <= 0 || params_.method != SequenceMethod::kOnlineDtw || frame->global || frame->checking_start ||
-      !frame->informative || frame->repeated || ring_.size() < rows || recent_count_ < rows)
-    return;  // off, or the start's own check is on, or no new view (a check under way goes on with the next
-             // one), or too few rows to weigh
+      ring_.size() < rows || recent_count_ < rows)
+  {
+    recent_checking_ = false;  // off, or the start's own check is on, or too few rows to weigh
+    return;
+  }
+  if (!frame->informative || frame->repeated)
+  {
+    // No new view to weigh. A check under way keeps its rows those of consecutive frames (this one's is
+    // neutral when featureless) and goes on with the next new view.
+    if (recent_checking_)
+      replayRecentQueries(1, &recent_ring_);
+    return;
+  }
   // Do the newest rows alone support the track's end? The whole window may still, for K / 2 frames after
   // the robot was carried elsewhere.
   const SequenceMatch newest = dtw_.match(ring_, frame->first, frame->width, rows, false, map_stats_.run.data(),
@@ -795,13 +806,22 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   if (matchConfidence(newest, true, 1.0) >= params_.confidence_threshold)
   {
     recent_checking_ = false;
+    recent_unanswered_ = 0;
     recent_confirmation_.clear();
+    return;
+  }
+  if (recent_unanswered_ >= rows)
+  {
+    // As many checks as the window has rows found no place elsewhere: every row now in it came after the
+    // first unsupported one, so weak evidence, not another place. Checked again once the track is supported.
+    recent_checking_ = false;
     return;
   }
   // Contradicted: published lost (at the track's answer, confidence 0) until the checks confirm the other
   // place and the track moves there.
   frame->contradicted = trackContradicted(match->keyframe, recent_checking_, rows, &recent_ring_);
   recent_checking_ = true;
+  recent_unanswered_ = frame->contradicted ? 0 : recent_unanswered_ + 1;
   if (recent_confirmation_.update(frame->contradicted ? contradicting_place_ : -1, frame->contradicted, true))
   {
     match->keyframe = contradicting_place_;
@@ -919,6 +939,7 @@ void Localizer::transition(State next, int place)
   // Every change of state_ but the initial one (start()) comes here; what each state needs on entry:
   state_ = next;
   recent_checking_ = false;  // recentCheck starts afresh in any new state
+  recent_unanswered_ = 0;
   recent_confirmation_.clear();
   switch (next)
   {
