@@ -111,8 +111,10 @@ struct LocalizerParams
   /// band; at most K - 1 are used); (2) while tracking, whenever they alone do not support the track's
   /// end, so that a robot carried elsewhere is found there as soon as they show it, not K / 2 frames later
   /// when the whole window stops supporting the old place (recentCheck). Each such frame computes their
-  /// whole-map rows (one, when the frame before was checked too), so it costs about as much as a global
-  /// frame (doc/results.md, Performance). 0 = neither: an empty window after a loss, no check.
+  /// whole-map rows (while a check goes on, only those of the frames since its last one), so it costs
+  /// about as much as a global frame (doc/results.md, Performance); after relocalization_rows checks in a
+  /// row found no place elsewhere the check rests until the track is supported again. At most K are used.
+  /// 0 = neither: an empty window after a loss, no check.
   int relocalization_rows = 8;
   /// Where the robot starts, on the first frame after construction or reset() (a new map, time going
   /// back in a looping bag). >= 0: at this keyframe (teach and repeat: the repeat starts where the teach
@@ -324,7 +326,8 @@ private:
     int first = 0, width = 0;        // keyframes of its row (tracking: the band)
     int predicted = 0;               // keyframe predicted while tracking: one ahead of the last match
     bool relocated = false;          // the track moved to another place on this frame (no speed sample)
-    bool contradicted = false;       // coasting, and this frame's check found another place: published lost
+    bool moved_by_check = false;     // ... by the checks of recentCheck or coastStep (moveTrackTo)
+    bool contradicted = false;       // this frame's check (coasting, recentCheck) found another place: lost
   };
   /// One frame of process(), or a frame the camera missed (query nullptr: a featureless row, skipFrames):
   /// the frame's row, its sequence match, the handler of the state it came in, the result.
@@ -345,7 +348,7 @@ private:
   /// kCoasting: the check for another place (trackContradicted), confirmed -> moveTrackTo; else the answer
   /// is the dead-reckoned coast_position_.
   void coastStep(Frame* frame, SequenceMatch* match, bool check_started);
-  /// kTracking, on a new view: when the newest lost_window_frames rows alone do not support the track's end
+  /// kTracking, on a new view: when the newest relocalization_rows rows alone do not support the track's end
   /// (its confidence over them below confidence_threshold), they are compared with the whole map
   /// (trackContradicted); once init_confirm_frames such checks in a row found the same place moving as the
   /// robot can, the track moves there (moveTrackTo). The whole window, K rows, lags K / 2 frames behind a
@@ -405,10 +408,11 @@ private:
   /// and than the track's end ([track - exclusion_radius, track + max_step + max_jump_ahead]) by a margin
   /// mapping to at least confidence_threshold (matchConfidence, the evidence being the distinct views
   /// among those rows over their number). Weak evidence (no place stands out) is not contrary evidence.
-  /// go_on: the check of the last frame goes on (only this frame's row is new), else it starts afresh.
+  /// new_rows: the check goes on, the newest new_rows frames (those since its last row) are new; 0: it
+  /// starts afresh.
   /// The rows weighed: the newest `window` recent queries' whole-map rows, kept in `ring` (coasting: K rows in
-  /// check_ring_; recentCheck: lost_window_frames rows in recent_ring_).
-  bool trackContradicted(int track_keyframe, bool go_on, int window, CostRingBuffer* ring);
+  /// check_ring_; recentCheck: relocalization_rows rows in recent_ring_).
+  bool trackContradicted(int track_keyframe, int new_rows, int window, CostRingBuffer* ring);
   /// How much cheaper per row, by chance, the best path at a wrong place of this map is than a stretch of
   /// track-sized ends at another wrong place, over `rows` rows: measured once per map and parameters on
   /// kChanceWindows stretches of the map's own keyframes taken as queries, their true places left out (the
@@ -504,9 +508,12 @@ private:
   CostRingBuffer recent_ring_;             // recentCheck's whole-map rows of the newest queries
   bool recent_checking_ = false;           // the last new view was checked against the whole map
   int recent_unanswered_ = 0;              // checks in a row that found no place elsewhere
+  int recent_pending_ = 0;                 // frames since the check's last row (featureless, repeated, missed)
+  int check_pending_ = 0;                  // missed frames since the coasting check's last row
   GlobalConfirmation recent_confirmation_; // of those checks: another place, confirmed
   CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
   int contradicting_place_ = -1;         // the place the last trackContradicted found
+  double contradicting_confidence_ = 0.0;  // its margin confidence (matchConfidence, before calibration)
   GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed
   double coast_position_ = 0.0;          // kCoasting: the dead-reckoned keyframe
   int last_confident_ = -1;              // the last confident, informative answer while tracking

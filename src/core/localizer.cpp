@@ -182,7 +182,7 @@ void Localizer::start()
   start_check_ = false;
   rows_since_start_ = views_since_start_ = 0;
   recent_checking_ = false;
-  recent_unanswered_ = 0;
+  recent_unanswered_ = recent_pending_ = check_pending_ = 0;
   recent_confirmation_.clear();
   if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
     return;
@@ -538,6 +538,8 @@ void Localizer::skipFrames(int count)
       transition(State::kInitializing);
     else if (state_ == State::kTracking || state_ == State::kCoasting)
       loseTrack(std::min<double>(map_->size() - 1, last_match_ + coastSpeed() * count));
+    else if (state_ == State::kLost && lost_position_ >= 0.0)  // already lost: its dead reckoning goes on
+      lost_position_ = std::min<double>(map_->size() - 1, lost_position_ + coastSpeed() * count);
     ring_.clear();
     start_check_ = false;
     confirmation_.clear();
@@ -565,6 +567,8 @@ LocalizationResult Localizer::step(const uint8_t* query)
     // confirmation (the robot may have moved on meanwhile).
     confirmation_.update(-1, false, false);
     last_path_.clear();
+    if (state_ == State::kLost && lost_position_ >= 0.0)  // the dead reckoning goes on through it
+      lost_position_ = std::min(static_cast<double>(map_->size() - 1), lost_position_ + coastSpeed());
     LocalizationResult result;
     result.query_informative = false;
     return result;
@@ -604,7 +608,12 @@ LocalizationResult Localizer::step(const uint8_t* query)
     trackStep(&frame, &match, confident);
   if (state_ == State::kTracking || state_ == State::kCoasting)
     followTrack(frame, match.keyframe);
-  return publish(frame, match.keyframe, confidence);
+  // The frame that moved the track to a confirmed place: that place's confidence, from the check that
+  // confirmed it, not the old track's.
+  return publish(frame, match.keyframe,
+                 frame.moved_by_check ? calibratedConfidence(contradicting_confidence_, params_.calibration_offset,
+                                                        params_.calibration_slope) :
+                                   confidence);
 }
 
 Localizer::Frame Localizer::beginFrame(const uint8_t* query)
@@ -784,7 +793,7 @@ void Localizer::trackStep(Frame* frame, SequenceMatch* match, bool confident)
 
 void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
 {
-  const int rows = params_.relocalization_rows;
+  const int rows = std::min(params_.relocalization_rows, params_.ring_buffer_rows);
   if (rows <= 0 || params_.method != SequenceMethod::kOnlineDtw || frame->global || frame->checking_start ||
       ring_.size() < rows || recent_count_ < rows)
   {
@@ -793,10 +802,10 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   }
   if (!frame->informative || frame->repeated)
   {
-    // No new view to weigh. A check under way keeps its rows those of consecutive frames (this one's is
-    // neutral when featureless) and goes on with the next new view.
+    // No new view to weigh. A check under way takes this frame's row (neutral when featureless) with the
+    // next new view's, so that its rows stay those of consecutive frames.
     if (recent_checking_)
-      replayRecentQueries(1, &recent_ring_);
+      ++recent_pending_;
     return;
   }
   // Do the newest rows alone support the track's end? The whole window may still, for K / 2 frames after
@@ -819,14 +828,16 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   }
   // Contradicted: published lost (at the track's answer, confidence 0) until the checks confirm the other
   // place and the track moves there.
-  frame->contradicted = trackContradicted(match->keyframe, recent_checking_, rows, &recent_ring_);
+  frame->contradicted =
+      trackContradicted(match->keyframe, recent_checking_ ? 1 + recent_pending_ : 0, rows, &recent_ring_);
   recent_checking_ = true;
+  recent_pending_ = 0;
   recent_unanswered_ = frame->contradicted ? 0 : recent_unanswered_ + 1;
   if (recent_confirmation_.update(frame->contradicted ? contradicting_place_ : -1, frame->contradicted, true))
   {
     match->keyframe = contradicting_place_;
     moveTrackTo(contradicting_place_, recent_ring_);
-    frame->relocated = true;
+    frame->relocated = frame->moved_by_check = true;
     frame->contradicted = false;
   }
 }
@@ -840,17 +851,24 @@ void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started
     // checks in a row were contradicted by places that move along the route like the robot can (a
     // single check's winner is a wrong place now and then).
     // The check's window grows to K rows, as a global search's.
-    frame->contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)), !check_started,
-                                            params_.ring_buffer_rows, &check_ring_);
+    frame->contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)),
+                                            check_started ? 0 : 1 + check_pending_, params_.ring_buffer_rows,
+                                            &check_ring_);
+    check_pending_ = 0;
     if (check_confirmation_.update(frame->contradicted ? contradicting_place_ : -1, frame->contradicted,
                                    frame->informative))
     {
       moveTrackTo(contradicting_place_, check_ring_);
       match->keyframe = contradicting_place_;
-      frame->relocated = true;
+      frame->relocated = frame->moved_by_check = true;
       frame->contradicted = false;
       return;
     }
+  }
+  else
+  {
+    ++check_pending_;  // a missed frame: no check, but its (featureless) row joins the next one's window
+    check_confirmation_.update(-1, false, false);
   }
   // A query that repeats the last view: the camera stood still, and so does the dead reckoning.
   if (!frame->repeated)
@@ -939,7 +957,7 @@ void Localizer::transition(State next, int place)
   // Every change of state_ but the initial one (start()) comes here; what each state needs on entry:
   state_ = next;
   recent_checking_ = false;  // recentCheck starts afresh in any new state
-  recent_unanswered_ = 0;
+  recent_unanswered_ = recent_pending_ = check_pending_ = 0;
   recent_confirmation_.clear();
   switch (next)
   {
@@ -994,14 +1012,14 @@ void Localizer::loseTrack(double track_position)
   transition(State::kLost);
 }
 
-bool Localizer::trackContradicted(int track_keyframe, bool go_on, int window, CostRingBuffer* ring)
+bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, CostRingBuffer* ring)
 {
   const int n = static_cast<int>(map_->size());
   if (recent_count_ < 1)
     return false;  // nothing to weigh
-  if (go_on && ring->size() > 0 && ring->capacity() == window && ring->maxWidth() == n)
+  if (new_rows > 0 && new_rows < window && ring->size() > 0 && ring->capacity() == window && ring->maxWidth() == n)
   {
-    replayRecentQueries(1, ring);  // the check goes on: only the newest frame's row is new
+    replayRecentQueries(new_rows, ring);  // the check goes on: only the frames since its last row are new
   }
   else
   {
@@ -1016,9 +1034,10 @@ bool Localizer::trackContradicted(int track_keyframe, bool go_on, int window, Co
   if (elsewhere.keyframe < 0 ||
       std::abs(map_stats_.run[elsewhere.keyframe] - map_stats_.run[track_keyframe]) <= params_.dtw.exclusion_radius)
     return false;  // the sequence still ends at the track's place
-  // As a global search confirms a place: its confidence weighed by the distinct views among K rows.
+  // As a global search confirms a place: its confidence weighed by the distinct views among the window's rows.
   const double evidence =
       std::min(1.0, static_cast<double>(ring->distinctViews(elsewhere.rows)) / std::max(1, window));
+  contradicting_confidence_ = matchConfidence(elsewhere, false, evidence);
   if (matchConfidence(elsewhere, true, evidence) < params_.confidence_threshold)
     return false;  // no place stands out: weak evidence
   if (!params_.contradiction_chance_margin)

@@ -1927,3 +1927,60 @@ TEST(LocalizerStates, ANewTrackForgetsTheLostOnesDeadReckoning)
   }
   EXPECT_GT(lost, 0) << "the case this test is about did not happen";  // measured: 2 (fog frames 14, 15)
 }
+
+TEST(LocalizerStates, TheFrameThatMovesTheTrackPublishesTheNewPlacesConfidence)
+{
+  // Tracking keyframes 0..80 of a random route, then carried to 150..: the newest frames contradict the
+  // track (published lost, confidence 0) until init_confirm_frames checks moved it (recentCheck). The
+  // frame that moves it publishes the confidence of the place the checks confirmed, not the old track's
+  // falling margin: at least that of the next frame at the new place, within 0.2 (the next frame's
+  // margin is over the whole window of the new track).
+  const auto map = syntheticMap(200);
+  arl::LocalizerParams params;
+  params.calibration_slope = 0.0f;  // the margin confidence itself
+  arl::Localizer localizer(map, params);
+  for (int i = 0; i <= 80; ++i)
+    localizer.process(keyframeCopy(*map, i));
+  int moved_at = -1;
+  arl::LocalizationResult moved, next;
+  for (int i = 150; i < 190 && moved_at < 0; ++i)
+  {
+    const arl::LocalizationResult r = localizer.process(keyframeCopy(*map, i));
+    if (r.status == LocalizationStatus::kTracking && std::abs(r.keyframe - i) <= 1)
+    {
+      moved_at = i;
+      moved = r;
+    }
+  }
+  ASSERT_GE(moved_at, 0) << "the track never moved to the new place";
+  next = localizer.process(keyframeCopy(*map, moved_at + 1));
+  std::printf("moved at frame %d: confidence %.3f, next frame %.3f\n", moved_at, moved.confidence, next.confidence);
+  EXPECT_GE(moved.confidence, next.confidence - 0.2);
+  EXPECT_GT(moved.confidence, 0.2);
+}
+
+TEST(LocalizerStates, MissedFramesWhileLostMoveTheDeadReckoningOn)
+{
+  // dead_reckon_while_lost: lost (frames resembling nothing), the answer moves on at the cruise speed, one
+  // keyframe per frame here; 5 frames missed (the stamps say so) move it on by 5 more, as 5 frames would.
+  const auto map = syntheticMap(400);
+  arl::LocalizerParams params;
+  params.dead_reckon_while_lost = true;
+  params.relocalization_rows = 0;  // the global search from an empty window: no chance place confirmed here
+  arl::Localizer localizer(map, params);
+  driveAtTenHz(localizer, *map, 0, 40);
+  int64_t stamp = 42 * kTenHz;
+  arl::LocalizationResult r;
+  int f = 0;
+  for (; f < 60 && r.status != LocalizationStatus::kLost; ++f, stamp += kTenHz)
+    r = localizer.process(randomFrame(80000 + f), stamp);
+  ASSERT_EQ(LocalizationStatus::kLost, r.status);
+  r = localizer.process(randomFrame(80000 + f++), stamp);
+  stamp += kTenHz;
+  const int before = r.keyframe;
+  stamp += 5 * kTenHz;  // 5 frames missed
+  r = localizer.process(randomFrame(80000 + f++), stamp);
+  ASSERT_EQ(5, r.missed_frames);
+  ASSERT_EQ(LocalizationStatus::kLost, r.status);
+  EXPECT_NEAR(before + 6, r.keyframe, 1) << "6 frames at about one keyframe per frame";
+}
