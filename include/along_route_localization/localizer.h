@@ -326,7 +326,7 @@ private:
     int first = 0, width = 0;        // keyframes of its row (tracking: the band)
     int predicted = 0;               // keyframe predicted while tracking: one ahead of the last match
     bool relocated = false;          // the track moved to another place on this frame (no speed sample)
-    bool moved_by_check = false;     // ... by the checks of recentCheck or coastStep (moveTrackTo)
+    bool moved_by_check = false;     // ... by the checks of recentCheck or coastStep (moveTrackOnConfirmation)
     bool contradicted = false;       // this frame's check (coasting, recentCheck) found another place: lost
   };
   /// One frame of process(), or a frame the camera missed (query nullptr: a featureless row, skipFrames):
@@ -345,13 +345,13 @@ private:
   void searchStep(const Frame& frame, const SequenceMatch& match, bool confirmable);
   /// kTracking, kCoasting: loss detection; lost, or coasting (loss_needs_contradiction), or on.
   void trackStep(Frame* frame, SequenceMatch* match, bool confident);
-  /// kCoasting: the check for another place (trackContradicted), confirmed -> moveTrackTo; else the answer
+  /// kCoasting: the check for another place (trackContradicted), confirmed -> moveTrackOnConfirmation; else the answer
   /// is the dead-reckoned coast_position_.
   void coastStep(Frame* frame, SequenceMatch* match, bool check_started);
   /// kTracking, on a new view: when the newest relocalization_rows rows alone do not support the track's end
   /// (its confidence over them below confidence_threshold), they are compared with the whole map
   /// (trackContradicted); once init_confirm_frames such checks in a row found the same place moving as the
-  /// robot can, the track moves there (moveTrackTo). The whole window, K rows, lags K / 2 frames behind a
+  /// robot can, the track moves there (moveTrackOnConfirmation). The whole window, K rows, lags K / 2 frames behind a
   /// robot that was carried elsewhere; its newest rows do not.
   void recentCheck(Frame* frame, SequenceMatch* match);
   /// Still tracking after the handler: the cruise speed's sample and the last match.
@@ -423,9 +423,11 @@ private:
   /// covered only the track's band) and the dead-reckoned answer goes on from there at coastSpeed()
   /// (dead_reckon_while_lost). Also for a gap that restarts the search (skipFrames).
   void loseTrack(double track_position);
-  /// The checks (coasting, or recentCheck) confirmed `keyframe`, another place: the track moves there
-  /// (transition(kTracking, keyframe)), the check's whole-map rows becoming the ring buffer's.
-  void moveTrackTo(int keyframe, const CostRingBuffer& check);
+  /// One more check (coasting, or recentCheck) for `confirmation`, its verdict in frame->contradicted. Once
+  /// init_confirm_frames checks confirmed contradicting_place_, the track moves there (transition(kTracking,
+  /// place)), the check's whole-map rows becoming the ring buffer's, and *match and *frame say so: true.
+  bool moveTrackOnConfirmation(GlobalConfirmation* confirmation, bool informative, const CostRingBuffer& check,
+                               Frame* frame, SequenceMatch* match);
   /// Appends to `target` the whole-map rows of the newest `count` (at most recent_count_) recent queries,
   /// oldest first: a global search after a loss, and trackContradicted's check.
   void replayRecentQueries(int count, CostRingBuffer* target);
@@ -434,6 +436,8 @@ private:
   /// Where dead reckoning puts the robot this frame while the window holds no evidence: the last
   /// dead-reckoned position (or the last answer) plus coastSpeed().
   double reckonedPosition(bool first_from_start) const;
+  /// `position` moved on by `frames` frames at coastSpeed(), at most the last keyframe: every dead reckoning.
+  double reckonedAhead(double position, double frames = 1.0) const;
 
   std::shared_ptr<const RouteMap> map_;
   LocalizerParams params_;

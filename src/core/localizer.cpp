@@ -537,9 +537,9 @@ void Localizer::skipFrames(int count)
     if (params_.method == SequenceMethod::kSeqSlam)
       transition(State::kInitializing);
     else if (state_ == State::kTracking || state_ == State::kCoasting)
-      loseTrack(std::min<double>(map_->size() - 1, last_match_ + coastSpeed() * count));
+      loseTrack(reckonedAhead(last_match_, count));
     else if (state_ == State::kLost && lost_position_ >= 0.0)  // already lost: its dead reckoning goes on
-      lost_position_ = std::min<double>(map_->size() - 1, lost_position_ + coastSpeed() * count);
+      lost_position_ = reckonedAhead(lost_position_, count);
     ring_.clear();
     start_check_ = false;
     confirmation_.clear();
@@ -568,7 +568,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
     confirmation_.update(-1, false, false);
     last_path_.clear();
     if (state_ == State::kLost && lost_position_ >= 0.0)  // the dead reckoning goes on through it
-      lost_position_ = std::min(static_cast<double>(map_->size() - 1), lost_position_ + coastSpeed());
+      lost_position_ = reckonedAhead(lost_position_);
     LocalizationResult result;
     result.query_informative = false;
     return result;
@@ -833,13 +833,7 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   recent_checking_ = true;
   recent_pending_ = 0;
   recent_unanswered_ = frame->contradicted ? 0 : recent_unanswered_ + 1;
-  if (recent_confirmation_.update(frame->contradicted ? contradicting_place_ : -1, frame->contradicted, true))
-  {
-    match->keyframe = contradicting_place_;
-    moveTrackTo(contradicting_place_, recent_ring_);
-    frame->relocated = frame->moved_by_check = true;
-    frame->contradicted = false;
-  }
+  moveTrackOnConfirmation(&recent_confirmation_, true, recent_ring_, frame, match);
 }
 
 
@@ -855,15 +849,8 @@ void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started
                                             check_started ? 0 : 1 + check_pending_, params_.ring_buffer_rows,
                                             &check_ring_);
     check_pending_ = 0;
-    if (check_confirmation_.update(frame->contradicted ? contradicting_place_ : -1, frame->contradicted,
-                                   frame->informative))
-    {
-      moveTrackTo(contradicting_place_, check_ring_);
-      match->keyframe = contradicting_place_;
-      frame->relocated = frame->moved_by_check = true;
-      frame->contradicted = false;
+    if (moveTrackOnConfirmation(&check_confirmation_, frame->informative, check_ring_, frame, match))
       return;
-    }
   }
   else
   {
@@ -872,7 +859,7 @@ void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started
   }
   // A query that repeats the last view: the camera stood still, and so does the dead reckoning.
   if (!frame->repeated)
-    coast_position_ = std::min(static_cast<double>(map_->size() - 1), coast_position_ + coastSpeed());
+    coast_position_ = reckonedAhead(coast_position_);
   match->keyframe = static_cast<int>(std::lround(coast_position_));
   run_position_ = -1.0;
 }
@@ -896,7 +883,6 @@ void Localizer::followTrack(const Frame& frame, int keyframe)
 
 LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double confidence)
 {
-  const int n = static_cast<int>(map_->size());
   LocalizationResult result;
   result.query_informative = frame.informative;
   result.confidence = confidence;
@@ -913,15 +899,14 @@ LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double c
     result.confidence = 0.0;  // contradicted, or unconfirmed: no chance worth a number
     if (lost_position_ >= 0.0 && params_.dead_reckon_while_lost)
     {
-      lost_position_ = std::min(static_cast<double>(n - 1), lost_position_ + coastSpeed());
+      lost_position_ = reckonedAhead(lost_position_);
       result.keyframe = static_cast<int>(std::lround(lost_position_));
     }
     else if (frame.contradicted && state_ == State::kTracking && last_confident_ >= 0 &&
              params_.dead_reckon_while_lost)
     {
       // Contradicted while tracking: where the robot went at the cruise speed since the last confident answer.
-      result.keyframe = static_cast<int>(
-          std::lround(std::min(static_cast<double>(n - 1), last_confident_ + coastSpeed() * frames_since_confident_)));
+      result.keyframe = static_cast<int>(std::lround(reckonedAhead(last_confident_, frames_since_confident_)));
     }
   }
   result.status = frame.contradicted ? LocalizationStatus::kLost : status();  // lost: contradicted, not unconfirmed
@@ -998,7 +983,12 @@ double Localizer::reckonedPosition(bool first_from_start) const
   if (first_from_start)
     return last_match_;  // the first frame of a known start is at the start keyframe
   const double from = reckon_position_ >= 0.0 ? reckon_position_ : static_cast<double>(last_match_);
-  return std::min(static_cast<double>(map_->size() - 1), from + coastSpeed());
+  return reckonedAhead(from);
+}
+
+double Localizer::reckonedAhead(double position, double frames) const
+{
+  return std::min(static_cast<double>(map_->size() - 1), position + coastSpeed() * frames);
 }
 
 double Localizer::coastSpeed() const
@@ -1068,8 +1058,15 @@ void Localizer::replayRecentQueries(int count, CostRingBuffer* target)
   }
 }
 
-void Localizer::moveTrackTo(int keyframe, const CostRingBuffer& check)
+bool Localizer::moveTrackOnConfirmation(GlobalConfirmation* confirmation, bool informative,
+                                        const CostRingBuffer& check, Frame* frame, SequenceMatch* match)
 {
+  if (!confirmation->update(frame->contradicted ? contradicting_place_ : -1, frame->contradicted, informative))
+    return false;
+  const int keyframe = contradicting_place_;
+  match->keyframe = keyframe;
+  frame->relocated = frame->moved_by_check = true;
+  frame->contradicted = false;
   // The check's whole-map rows become the window (they cover any band); the track starts afresh there.
   ring_.clear();
   const int n = static_cast<int>(map_->size());
@@ -1080,6 +1077,7 @@ void Localizer::moveTrackTo(int keyframe, const CostRingBuffer& check)
       row[k] = check.at(age, k, 0.0f);
   }
   transition(State::kTracking, keyframe);
+  return true;
 }
 
 float Localizer::chanceMargin(int rows)
