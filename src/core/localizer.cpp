@@ -968,7 +968,7 @@ void Localizer::transition(State next, int place)
     case State::kCoasting:
       // Weak evidence: dead reckoning at the cruise speed from the last confident answer.
       check_confirmation_.clear();
-      coast_position_ = last_confident_ + coastSpeed() * (frames_since_confident_ - 1);
+      coast_position_ = reckonedAhead(last_confident_, frames_since_confident_ - 1);
       break;
     case State::kLost:
       ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
