@@ -1116,6 +1116,35 @@ TEST(Localizer, WeakEvidenceKeepsTheTrack)
   }
 }
 
+TEST(Localizer, CoastingEnteredAtTheRouteEndStaysOnTheMap)
+{
+  // loss_needs_contradiction, K = 10: track keyframes 0..77 of 80, then 10 featureless frames (no
+  // evidence, no count toward a loss), then frames from nowhere: the loss detection fires on the 6th of
+  // them (lost_after_frames) and the track coasts on at the cruise speed (1 keyframe per frame) from the
+  // last confident answer, 16 frames before: 77 + 15 = 92 unless the dead reckoning stops at the route's
+  // end. Then the camera stands still (the same frame again). Every answer must be a keyframe of the map.
+  const int n = 80;
+  const auto map = syntheticMap(n);
+  arl::LocalizerParams params;
+  params.loss_needs_contradiction = true;
+  params.ring_buffer_rows = 10;  // the window turns over within the frames from nowhere
+  arl::Localizer localizer(map, params);
+  for (int i = 0; i <= 77; ++i)
+    localizer.process(keyframeCopy(*map, i));
+  const cv::Mat featureless(map->height(), map->width(), CV_8UC1, cv::Scalar(128));
+  const cv::Mat still = randomFrame(61000);
+  int highest = -1;
+  for (int j = 0; j < 30; ++j)
+  {
+    const arl::LocalizationResult r =
+        localizer.process(j < 10 ? featureless : j < 18 ? randomFrame(61000 + 18 - j) : still);
+    highest = std::max(highest, r.keyframe);
+    EXPECT_GE(r.keyframe, 0) << "frame " << j;
+    EXPECT_LT(r.keyframe, n) << "frame " << j << ": an answer past the last keyframe";
+  }
+  EXPECT_EQ(n - 1, highest) << "the coasting reaches the route's end";
+}
+
 TEST(Localizer, ContraryEvidenceMovesTheTrackAndLostAnswersAreDeadReckoned)
 {
   // Track keyframes 0..40, then the robot is carried to keyframe 120 and drives on (kidnapped). The
