@@ -1,5 +1,5 @@
 // Parameters by name: the one table of every parameter users set (params.yaml, command line,
-// dynamic_reconfigure) of the preprocessor, localizer, map recorder and route follower: its name, the field it sets, its working range, unit and meaning. Defaults are the
+// dynamic_reconfigure) of the preprocessor, localizer, map recorder and route follower: its name, the field it sets, its working range, unit, meaning and tier. Defaults are the
 // fields' initializers; validate() checks the ranges of this table; the .cfg files are checked against it
 // (test_reconfigure).
 #ifndef ALONG_ROUTE_LOCALIZATION_PARAMETERS_H
@@ -124,9 +124,9 @@ struct RemovedParameter
 /// Every parameter an earlier version had and this one removed.
 const std::vector<RemovedParameter>& removedParameters();
 /// "" unless `name` is a removed parameter; then the sentence saying so: "contrast_min_std was removed in
-/// this version; it is now fixed at 0.01 (why); the value given is ignored". setParameterChecked and
-/// applyParameter (so params files, --set and the nodelets' private parameters) answer a removed name with
-/// it instead of "unknown parameter".
+/// this version; it is now fixed at 0.01 (why)". setParameterChecked (params files, the nodelets' private
+/// parameters; it adds "; the value given is ignored") and applyParameter (--set, the strict file loader: an
+/// error) answer a removed name with it instead of "unknown parameter".
 std::string removedParameterSentence(const std::string& name);
 
 /// The names of the table close to `name` (a misspelling: one edit, or a name containing it), sorted.

@@ -413,7 +413,7 @@ std::string toString(ParameterTier tier)
 const std::vector<RemovedParameter>& removedParameters()
 {
   static const std::vector<RemovedParameter> removed = {
-    { "contrast_min_std", "0.01",
+    { "contrast_min_std", formatNumber(kContrastMinStd),
       "kContrastMinStd, contrast_enhancement.h: the eq. 2 std's floor only keeps a flat difference vector from "
       "dividing by zero" },
   };
@@ -425,7 +425,7 @@ std::string removedParameterSentence(const std::string& name)
   for (const RemovedParameter& removed : removedParameters())
     if (removed.name == name)
       return name + " was removed in this version; it is now fixed at " + removed.fixed_at + " (" + removed.why +
-             "); the value given is ignored";
+             ")";
   return "";
 }
 
@@ -504,7 +504,7 @@ std::string setParameterChecked(const std::string& name, const std::string& valu
     *refused = true;
   const ParameterSpec* spec = findParameter(name);
   if (!spec && !removedParameterSentence(name).empty())
-    return removedParameterSentence(name);
+    return removedParameterSentence(name) + "; the value given is ignored";
   if (!spec)
   {
     std::string sentence = "unknown parameter '" + name + "' refused";

@@ -44,7 +44,7 @@ std::string unreadSentence(const std::string& name, const std::string& who, cons
 {
   const std::string removed = removedParameterSentence(name);
   if (!removed.empty())
-    return "~" + removed;
+    return "~" + removed + "; the value given is ignored";
   std::string sentence = "~" + name + " is not a parameter of the " + who + " and is ignored";
   std::set<std::string> similar;
   for (const std::string& other : similarParameterNames(name))

@@ -361,6 +361,7 @@ TEST_F(ParameterFile, ARemovedNameGetsAWarningWithTheValueItIsFixedAtAndTheOther
   EXPECT_FLOAT_EQ(0.01f, arl::kContrastMinStd);
   const std::string sentence = arl::removedParameterSentence("contrast_min_std");
   EXPECT_EQ(0u, sentence.find("contrast_min_std was removed in this version; it is now fixed at 0.01 (")) << sentence;
+  EXPECT_EQ(')', sentence.back()) << sentence;
   EXPECT_NE(std::string::npos, sentence.find("kContrastMinStd")) << sentence;
   EXPECT_EQ("", arl::removedParameterSentence("ring_buffer_rows"));
   EXPECT_EQ("", arl::removedParameterSentence("contrast_min_sd"));
@@ -375,13 +376,14 @@ TEST_F(ParameterFile, ARemovedNameGetsAWarningWithTheValueItIsFixedAtAndTheOther
   ASSERT_TRUE(arl::applyParameterEntriesChecked(path_, entries, &preprocessing_, &localizer_, &warnings, &error))
       << error;
   ASSERT_EQ(1u, warnings.size());
-  EXPECT_EQ(path_ + ":3: " + sentence, warnings[0]);
+  EXPECT_EQ(path_ + ":3: " + sentence + "; the value given is ignored", warnings[0]);
   EXPECT_EQ(10, localizer_.ring_buffer_rows);
   EXPECT_EQ(3, localizer_.dtw.max_step);
   // One value at a time (--set, the nodelet): refused with the same sentence, nothing changed.
   arl::ParameterSet params;
   bool refused = false;
-  EXPECT_EQ(sentence, arl::setParameterChecked("contrast_min_std", "0.05", &params, &refused));
+  EXPECT_EQ(sentence + "; the value given is ignored",
+            arl::setParameterChecked("contrast_min_std", "0.05", &params, &refused));
   EXPECT_TRUE(refused);
   arl::PreprocessingParams preprocessing;
   arl::LocalizerParams localizer;

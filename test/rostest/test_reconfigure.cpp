@@ -270,7 +270,7 @@ TEST(Reconfigure, ARemovedPrivateParameterIsNamedAsRemovedWithItsFixedValue)
 {
   // ~contrast_min_std in a launch file of the earlier version: not "misspelt?", but what became of it.
   const std::string sentence = arl::unreadSentence("contrast_min_std", "localizer", { "ring_buffer_rows" });
-  EXPECT_EQ("~" + arl::removedParameterSentence("contrast_min_std"), sentence);
+  EXPECT_EQ("~" + arl::removedParameterSentence("contrast_min_std") + "; the value given is ignored", sentence);
   EXPECT_EQ(0u, sentence.find("~contrast_min_std was removed in this version; it is now fixed at 0.01")) << sentence;
   EXPECT_EQ(0u, arl::unreadSentence("ring_bufer_rows", "localizer", { "ring_buffer_rows" })
                     .find("~ring_bufer_rows is not a parameter of the localizer and is ignored (did you mean "
