@@ -326,7 +326,8 @@ TEST(ParameterTiers, TheUserTierIsTheseRowsAndEveryOtherIsAdvanced)
 
 TEST(ParameterTiers, HelpListsTheUserTierAndSaysHowToListTheAdvancedOnes)
 {
-  const std::vector<arl::ParameterGroup> groups = { arl::ParameterGroup::kPreprocessor, arl::ParameterGroup::kLocalizer };
+  const std::vector<arl::ParameterGroup> groups = { arl::ParameterGroup::kPreprocessor,
+                                                    arl::ParameterGroup::kLocalizer };
   const std::string help = arl::parameterHelp(groups, false, "tool --help-advanced");
   const std::string all = arl::parameterHelp(groups, true, "tool --help-advanced");
   for (const arl::ParameterSpec& spec : arl::parameterTable())

@@ -148,7 +148,8 @@ void expectCfgAgreesWithTheTable(arl::ParameterGroup group, bool all_rows)
     // The tiers (ParameterTier): the user tier at the top level ("Default"), the advanced one in the group
     // "advanced", which rqt_reconfigure shows collapsed; no other group.
     ASSERT_TRUE(cfg_group.name == "Default" || cfg_group.name == "advanced") << cfg_group.name;
-    const arl::ParameterTier tier = cfg_group.name == "Default" ? arl::ParameterTier::kUser : arl::ParameterTier::kAdvanced;
+    const arl::ParameterTier tier =
+        cfg_group.name == "Default" ? arl::ParameterTier::kUser : arl::ParameterTier::kAdvanced;
     if (tier == arl::ParameterTier::kAdvanced)
     {
       EXPECT_EQ("collapse", cfg_group.type);
