@@ -9,6 +9,11 @@
 namespace along_route_localization
 {
 
+/// The localizer's min_std of eq. 2 (cost units). Not a parameter (it was contrast_min_std): it only keeps a
+/// flat difference vector (every keyframe as far from the query) from dividing by zero. The value of 0.01
+/// is the default the parameter had, so results are unchanged.
+constexpr float kContrastMinStd = 0.01f;
+
 /// eq. 2: D^_i = (D_i - mean_l) / max(std_l, min_std), where mean_l and std_l (population) are taken
 /// over the informative entries of the window [i - n, i + n] clipped to [0, count).
 /// Entries with informative[i] == 0 (featureless keyframes or an uninformative query) and entries

@@ -48,7 +48,6 @@ struct LocalizerParams
   int max_shift_px = 4;               ///< m, horizontal shift search range, px of the preprocessed image
   bool subpixel_shift = true;
   int contrast_window = 10;           ///< n, eq. 2 half window, keyframes
-  float contrast_min_std = 0.01f;     ///< floor of the eq. 2 std (cost units)
   float contrast_clamp = 2.0f;        ///< |enhanced cost| limit
   /// Step 3a, rowWeight (an extension of the paper): while tracking, each row is weighed by
   /// clamp(peak / row_weight_reference, 1 - row_weight_range, 1 + row_weight_range), the peak being how

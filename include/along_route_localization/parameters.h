@@ -1,5 +1,5 @@
 // Parameters by name: the one table of every parameter users set (params.yaml, command line,
-// dynamic_reconfigure) of the preprocessor, localizer, map recorder and route follower: its name, the field it sets, its working range, unit and meaning. Defaults are the
+// dynamic_reconfigure) of the preprocessor, localizer, map recorder and route follower: its name, the field it sets, its working range, unit, meaning and tier. Defaults are the
 // fields' initializers; validate() checks the ranges of this table; the .cfg files are checked against it
 // (test_reconfigure).
 #ifndef ALONG_ROUTE_LOCALIZATION_PARAMETERS_H
@@ -29,6 +29,18 @@ enum class ParameterGroup
 };
 std::string toString(ParameterGroup group);
 
+/// Who sets it. kUser: what a user sets for the robot and the route, each a physical quantity or a choice
+/// (K, s, m, n, the field of view, where the route starts and ends, ...); `--help`, the README and the
+/// .cfg's top level show these. kAdvanced: estimator internals, tie-breaking costs, calibration, the
+/// SeqSLAM baseline's, ablation switches, chosen by the evaluation (doc/usage.md, All parameters, says why
+/// per group); listed by `--help-advanced`, doc/usage.md and the .cfg's collapsed group "advanced".
+enum class ParameterTier
+{
+  kUser,
+  kAdvanced
+};
+std::string toString(ParameterTier tier);
+
 enum class ParameterType
 {
   kInt,
@@ -51,6 +63,7 @@ struct ParameterSpec
 {
   std::string name;
   ParameterGroup group;
+  ParameterTier tier = ParameterTier::kAdvanced;  ///< set per row in the table (makeTable)
   ParameterType type;
   double min, max;                   ///< kInt, kDouble: the working range, both ends included
   std::string unit;                  ///< of the value as users give it; "" when it has none
@@ -94,8 +107,27 @@ std::string setParameterChecked(const std::string& name, const std::string& valu
 std::string checkRanges(ParameterGroup group, const ParameterSet& params);
 
 /// The table as text for --help: for each parameter of the groups, "name  default  range unit" then its
-/// doc, indented.
-std::string parameterHelp(const std::vector<ParameterGroup>& groups);
+/// doc, indented. Only the user tier unless `with_advanced`; then each group's advanced rows follow its
+/// user rows under "<group>, advanced:". Without them, a last line says how many advanced rows of the
+/// groups there are and how to list them (`how_to_list`, e.g. "localize_offline --help-advanced").
+std::string parameterHelp(const std::vector<ParameterGroup>& groups, bool with_advanced = false,
+                          const std::string& how_to_list = "--help-advanced");
+
+/// The rows of `group` in `tier`, in table order.
+std::vector<std::string> parameterNamesOf(ParameterGroup group, ParameterTier tier);
+
+/// A parameter this version no longer has: its name, the value it is now fixed at and why.
+struct RemovedParameter
+{
+  std::string name, fixed_at, why;
+};
+/// Every parameter an earlier version had and this one removed.
+const std::vector<RemovedParameter>& removedParameters();
+/// "" unless `name` is a removed parameter; then the sentence saying so: "contrast_min_std was removed in
+/// this version; it is now fixed at 0.01 (why)". setParameterChecked (params files, the nodelets' private
+/// parameters; it adds "; the value given is ignored") and applyParameter (--set, the strict file loader: an
+/// error) answer a removed name with it instead of "unknown parameter".
+std::string removedParameterSentence(const std::string& name);
 
 /// The names of the table close to `name` (a misspelling: one edit, or a name containing it), sorted.
 std::vector<std::string> similarParameterNames(const std::string& name);

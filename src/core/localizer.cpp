@@ -56,7 +56,7 @@ std::string LocalizerParams::validate() const
   if (!out_of_range.empty())
     return out_of_range;
   std::ostringstream e;
-  if (!std::isfinite(contrast_min_std + contrast_clamp + row_weight_reference + row_weight_range + min_texture_ratio +
+  if (!std::isfinite(contrast_clamp + row_weight_reference + row_weight_range + min_texture_ratio +
                      stationary_ratio + motion_prior_weight + motion_prior_cap + confidence_scale) ||
       !std::isfinite(confidence_threshold + horizontal_fov_rad))
     e << "every parameter must be a finite number";
@@ -455,7 +455,7 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
   float* row = (target ? *target : ring_).appendRow(first, width, repeated_query);
   const float peak = enhanceContrastRuns(
       costs, mask_.data(), map_stats_.stationary_change > 0.0f ? map_stats_.repeats.data() + first : nullptr, width,
-      params_.contrast_window, params_.contrast_min_std, params_.contrast_clamp, 0.0f, row, &contrast_scratch_);
+      params_.contrast_window, kContrastMinStd, params_.contrast_clamp, 0.0f, row, &contrast_scratch_);
   // Step 3a, an extension: a row whose best match stands out counts more (rowWeight). Only a tracking
   // row, whose peak is over the band (2 * search_radius + 1 keyframes): over the whole map the largest of
   // many scores stands out by chance, so a global search row weighs 1.

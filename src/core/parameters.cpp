@@ -103,6 +103,13 @@ ParameterSpec choiceRow(const char* name, Group group, const char* doc, std::vec
   return spec;
 }
 
+/// Marks a row as the user tier (ParameterTier): the rows not marked are advanced.
+ParameterSpec user(ParameterSpec spec)
+{
+  spec.tier = ParameterTier::kUser;
+  return spec;
+}
+
 #define FIELD(expr) [](ParameterSet& p) -> decltype((p.expr)) { return p.expr; }
 
 std::vector<ParameterSpec> makeTable()
@@ -111,57 +118,60 @@ std::vector<ParameterSpec> makeTable()
               fol = Group::kRouteFollower;
   const double kMaxInt = 2e9;
   std::vector<ParameterSpec> t;
+  // The tier of each row: user(...) marks what a user sets for the robot and the route; every other row
+  // is advanced (doc/usage.md, All parameters, says why per group). A row taken out of the table goes to
+  // removedParameters() below, so that params files naming it get a warning.
   // Step 1, the preprocessor (cfg/Preprocessor.cfg); stored in the map.
-  t.push_back(numberRow("output_width", pre, 8, 1024, "px", "Width of the preprocessed image",
-                        FIELD(preprocessing.output_width)));
-  t.push_back(numberRow("output_height", pre, 4, 1024, "px", "Height of the preprocessed image",
-                        FIELD(preprocessing.output_height)));
-  t.push_back(choiceRow(
+  t.push_back(user(numberRow("output_width", pre, 8, 1024, "px", "Width of the preprocessed image",
+                             FIELD(preprocessing.output_width))));
+  t.push_back(user(numberRow("output_height", pre, 4, 1024, "px", "Height of the preprocessed image",
+                             FIELD(preprocessing.output_height))));
+  t.push_back(user(choiceRow(
       "normalization", pre, "Normalization: patch (eq. 1), divisive (eq. 3) or none (grayscale and resize only)",
       { "patch", "divisive", "none" }, [](const ParameterSet& p) { return toString(p.preprocessing.normalization); },
-      [](ParameterSet* p, const std::string& v) { return normalizationFromString(v, &p->preprocessing.normalization); }));
+      [](ParameterSet* p, const std::string& v) { return normalizationFromString(v, &p->preprocessing.normalization); })));
   t.push_back(numberRow("patch_size", pre, 2, 256, "px",
                         "eq. 1: side of the square patches (corrected to divide the output size)",
                         FIELD(preprocessing.patch_size)));
   t.push_back(numberRow("min_patch_std", pre, 0, 128, "gray levels",
                         "eq. 1: patches with a smaller std become flat 128", FIELD(preprocessing.min_patch_std)));
-  t.push_back(numberRow("filter_window", pre, 3, 63, "px",
-                        "eq. 3: side of the Gaussian window (odd; an even value is corrected)",
-                        FIELD(preprocessing.filter_window)));
-  t.push_back(numberRow("normalization_strength", pre, 0.0001, 100, "per gray level", "eq. 3: s",
-                        FIELD(preprocessing.normalization_strength)));
+  t.push_back(user(numberRow("filter_window", pre, 3, 63, "px",
+                             "eq. 3: side of the Gaussian window (odd; an even value is corrected)",
+                             FIELD(preprocessing.filter_window))));
+  t.push_back(user(numberRow("normalization_strength", pre, 0.0001, 100, "per gray level", "eq. 3: s",
+                             FIELD(preprocessing.normalization_strength))));
   t.push_back(numberRow("output_gain", pre, 0.1, 255, "bytes per unit",
                         "Bytes per unit of normalized intensity: byte = 128 + gain * z",
                         FIELD(preprocessing.output_gain)));
-  t.push_back(numberRow("sky_fraction", pre, 0, 0.95, "", "Share of the top rows set to 0 (sky blackening)",
-                        FIELD(preprocessing.sky_fraction)));
+  t.push_back(user(numberRow("sky_fraction", pre, 0, 0.95, "", "Share of the top rows set to 0 (sky blackening)",
+                             FIELD(preprocessing.sky_fraction))));
 
   // Steps 2-5, the localizer: first those of cfg/Localizer.cfg (dynamic), then the static ones.
-  t.push_back(choiceRow(
+  t.push_back(user(choiceRow(
       "method", loc, "Sequence matching: dtw (online DTW, this package) or seqslam (straight-line baseline)",
       { "dtw", "seqslam" }, [](const ParameterSet& p) { return toString(p.localizer.method); },
-      [](ParameterSet* p, const std::string& v) { return sequenceMethodFromString(v, &p->localizer.method); }));
-  t.push_back(numberRow("ring_buffer_rows", loc, 3, 1000, "frames",
-                        "K: frames in the sequence window (ring-buffer rows; at least min_init_frames)", FIELD(localizer.ring_buffer_rows)));
-  t.push_back(numberRow("max_step", loc, 1, 16, "keyframes per frame",
-                        "s: most keyframes advanced per frame, DTW steps (1,0)..(1,s)", FIELD(localizer.dtw.max_step)));
-  t.push_back(numberRow("max_shift_px", loc, 0, 127, "px",
-                        "m: horizontal shift search range in the preprocessed image (corrected to leave a compared "
-                        "strip)",
-                        FIELD(localizer.max_shift_px)));
-  t.push_back(numberRow("homing_max_shift_px", loc, 0, 127, "px",
-                        "Horizontal shift range of the homing estimate (homing.h), px of the preprocessed image",
-                        FIELD(localizer.homing_max_shift_px)));
-  t.push_back(numberRow("homing_max_vertical_shift_px", loc, 0, 127, "px",
-                        "Vertical shift range per column of the homing estimate (camera pitch)",
-                        FIELD(localizer.homing_max_vertical_shift_px)));
-  t.push_back(numberRow("contrast_window", loc, 1, 10000, "keyframes",
-                        "n: eq. 2 half window of the contrast enhancement", FIELD(localizer.contrast_window)));
-  t.push_back(numberRow("search_radius", loc, 1, 100000, "keyframes",
-                        "Keyframes computed on each side of the predicted match while tracking (at least max_step)",
-                        FIELD(localizer.search_radius)));
-  t.push_back(numberRow("confidence_threshold", loc, 0, 1, "", "Below it a frame counts as low-confidence",
-                        FIELD(localizer.confidence_threshold)));
+      [](ParameterSet* p, const std::string& v) { return sequenceMethodFromString(v, &p->localizer.method); })));
+  t.push_back(user(numberRow("ring_buffer_rows", loc, 3, 1000, "frames",
+                             "K: frames in the sequence window (ring-buffer rows; at least min_init_frames)", FIELD(localizer.ring_buffer_rows))));
+  t.push_back(user(numberRow("max_step", loc, 1, 16, "keyframes per frame",
+                             "s: most keyframes advanced per frame, DTW steps (1,0)..(1,s)", FIELD(localizer.dtw.max_step))));
+  t.push_back(user(numberRow("max_shift_px", loc, 0, 127, "px",
+                             "m: horizontal shift search range in the preprocessed image (corrected to leave a compared "
+                             "strip)",
+                             FIELD(localizer.max_shift_px))));
+  t.push_back(user(numberRow("homing_max_shift_px", loc, 0, 127, "px",
+                             "Horizontal shift range of the homing estimate (homing.h), px of the preprocessed image",
+                             FIELD(localizer.homing_max_shift_px))));
+  t.push_back(user(numberRow("homing_max_vertical_shift_px", loc, 0, 127, "px",
+                             "Vertical shift range per column of the homing estimate (camera pitch)",
+                             FIELD(localizer.homing_max_vertical_shift_px))));
+  t.push_back(user(numberRow("contrast_window", loc, 1, 10000, "keyframes",
+                             "n: eq. 2 half window of the contrast enhancement", FIELD(localizer.contrast_window))));
+  t.push_back(user(numberRow("search_radius", loc, 1, 100000, "keyframes",
+                             "Keyframes computed on each side of the predicted match while tracking (at least max_step)",
+                             FIELD(localizer.search_radius))));
+  t.push_back(user(numberRow("confidence_threshold", loc, 0, 1, "", "Below it a frame counts as low-confidence",
+                             FIELD(localizer.confidence_threshold))));
   t.push_back(numberRow("stop_penalty", loc, 0, 10, "cost", "Cost of a DTW (1,0) stop that follows another stop",
                         FIELD(localizer.dtw.stop_penalty)));
   t.push_back(numberRow("skip_penalty", loc, 0, 10, "cost",
@@ -175,7 +185,7 @@ std::vector<ParameterSpec> makeTable()
                                   FIELD(localizer.horizontal_fov_rad));
     fov.get_number = [](const ParameterSet& p) { return p.localizer.horizontal_fov_rad * 180.0 / M_PI; };
     fov.set_number = [](ParameterSet* p, double deg) { p->localizer.horizontal_fov_rad = deg * M_PI / 180.0; };
-    t.push_back(fov);
+    t.push_back(user(fov));
   }
   t.push_back(numberRow("lost_after_frames", loc, 1, 10000, "frames",
                         "Lost (global search) when this many of the last lost_window_frames informative frames were "
@@ -191,8 +201,6 @@ std::vector<ParameterSpec> makeTable()
       [](ParameterSet* p, const std::string& v) { return costFunctionFromString(v, &p->localizer.cost_function); }));
   t.push_back(boolRow("subpixel_shift", loc, "Measure the shift to a fraction of a pixel",
                       FIELD(localizer.subpixel_shift)));
-  t.push_back(numberRow("contrast_min_std", loc, 0.0001, 10, "cost", "Floor of the eq. 2 std",
-                        FIELD(localizer.contrast_min_std)));
   t.push_back(numberRow("contrast_clamp", loc, 0.1, 100, "", "Limit of |enhanced cost| (eq. 2)",
                         FIELD(localizer.contrast_clamp)));
   t.push_back(numberRow("row_weight_reference", loc, 0.1, 100, "std",
@@ -238,8 +246,8 @@ std::vector<ParameterSpec> makeTable()
   t.push_back(boolRow("run_dead_reckoning", loc,
                       "Through a run of identical keyframes, report the keyframe reached at the entry speed",
                       FIELD(localizer.run_dead_reckoning)));
-  t.push_back(boolRow("fill_frame_gaps", loc, "Frames missed (a gap in the stamps) become rows without evidence",
-                      FIELD(localizer.fill_frame_gaps)));
+  t.push_back(user(boolRow("fill_frame_gaps", loc, "Frames missed (a gap in the stamps) become rows without evidence",
+                      FIELD(localizer.fill_frame_gaps))));
   t.push_back(numberRow("seqslam_sequence_length", loc, 2, 1000, "frames", "SeqSLAM baseline: ds, frames per sequence",
                         FIELD(localizer.seqslam.sequence_length)));
   t.push_back(numberRow("seqslam_min_velocity", loc, -100, 100, "keyframes per frame",
@@ -249,8 +257,8 @@ std::vector<ParameterSpec> makeTable()
                         FIELD(localizer.seqslam.max_velocity)));
   t.push_back(numberRow("seqslam_velocity_step", loc, 0.001, 100, "keyframes per frame",
                         "SeqSLAM baseline: step between velocities tried", FIELD(localizer.seqslam.velocity_step)));
-  t.push_back(numberRow("start_keyframe", loc, -1, kMaxInt, "keyframe",
-                        "Where the robot starts (-1: unknown, a global search first)", FIELD(localizer.start_keyframe)));
+  t.push_back(user(numberRow("start_keyframe", loc, -1, kMaxInt, "keyframe",
+                             "Where the robot starts (-1: unknown, a global search first)", FIELD(localizer.start_keyframe))));
   t.push_back(numberRow("min_init_frames", loc, 1, 10000, "frames", "Frames before the first global answer",
                         FIELD(localizer.min_init_frames)));
   t.push_back(numberRow("init_confirm_frames", loc, 1, 10000, "frames",
@@ -273,37 +281,37 @@ std::vector<ParameterSpec> makeTable()
   t.push_back(boolRow("dead_reckon_while_lost", loc,
                       "While lost, answer the dead-reckoned keyframe instead of the global search's guess",
                       FIELD(localizer.dead_reckon_while_lost)));
-  t.push_back(numberRow("end_of_route_keyframes", loc, 0, 1000000, "keyframes",
-                        "A match this close to the last keyframe reports end_of_route",
-                        FIELD(localizer.end_of_route_keyframes)));
+  t.push_back(user(numberRow("end_of_route_keyframes", loc, 0, 1000000, "keyframes",
+                             "A match this close to the last keyframe reports end_of_route",
+                             FIELD(localizer.end_of_route_keyframes))));
   t.push_back(boolRow("parallel", loc, "Spread global searches over the cores", FIELD(localizer.parallel)));
 
   // The map recorder's keyframe policy (cfg/MapRecorder.cfg).
-  t.push_back(numberRow("every_nth", rec, 1, 1000, "frames", "Keep every n-th frame (1: every frame)",
-                        FIELD(keyframes.every_nth)));
-  t.push_back(numberRow("min_time_gap", rec, 0, 3600, "s",
-                        "Minimum time since the last keyframe, from the header stamps (0: off)",
-                        FIELD(keyframes.min_time_gap_s)));
-  t.push_back(numberRow("min_appearance_change", rec, 0, 255, "gray levels",
-                        "Minimum mean absolute byte difference to the last keyframe (0: off)",
-                        FIELD(keyframes.min_appearance_change)));
-  t.push_back(numberRow("min_distance", rec, 0, 10000, "m",
-                        "Minimum distance travelled since the last keyframe, from the odom topic (0: off)",
-                        FIELD(keyframes.min_distance_m)));
+  t.push_back(user(numberRow("every_nth", rec, 1, 1000, "frames", "Keep every n-th frame (1: every frame)",
+                             FIELD(keyframes.every_nth))));
+  t.push_back(user(numberRow("min_time_gap", rec, 0, 3600, "s",
+                             "Minimum time since the last keyframe, from the header stamps (0: off)",
+                             FIELD(keyframes.min_time_gap_s))));
+  t.push_back(user(numberRow("min_appearance_change", rec, 0, 255, "gray levels",
+                             "Minimum mean absolute byte difference to the last keyframe (0: off)",
+                             FIELD(keyframes.min_appearance_change))));
+  t.push_back(user(numberRow("min_distance", rec, 0, 10000, "m",
+                             "Minimum distance travelled since the last keyframe, from the odom topic (0: off)",
+                             FIELD(keyframes.min_distance_m))));
 
   // The route follower's controller and safety thresholds (cfg/RouteFollower.cfg; route_follower.h).
-  t.push_back(numberRow("homing_gain", fol, 0, 20, "rad/s per rad", "Turn rate per homing angle",
-                        FIELD(follower.homing_gain)));
-  t.push_back(numberRow("max_homing_turn_rate", fol, 0, 10, "rad/s", "Bound of the homing term |gain x angle|",
-                        FIELD(follower.max_homing_turn_rps)));
+  t.push_back(user(numberRow("homing_gain", fol, 0, 20, "rad/s per rad", "Turn rate per homing angle",
+                             FIELD(follower.homing_gain))));
+  t.push_back(user(numberRow("max_homing_turn_rate", fol, 0, 10, "rad/s", "Bound of the homing term |gain x angle|",
+                             FIELD(follower.max_homing_turn_rps))));
   t.push_back(numberRow("homing_time_constant", fol, 0, 10, "s",
                         "Low-pass time constant of the homing angle (0: none)", FIELD(follower.homing_time_constant_s)));
-  t.push_back(numberRow("speed_factor", fol, 0, 5, "", "Forward speed (and taught turn rate) = taught x this",
-                        FIELD(follower.speed_factor)));
-  t.push_back(numberRow("min_confidence", fol, 0, 1, "",
-                        "A localization whose confidence (the probability of being within one keyframe) is below "
-                        "this counts as low",
-                        FIELD(follower.min_confidence)));
+  t.push_back(user(numberRow("speed_factor", fol, 0, 5, "", "Forward speed (and taught turn rate) = taught x this",
+                             FIELD(follower.speed_factor))));
+  t.push_back(user(numberRow("min_confidence", fol, 0, 1, "",
+                             "A localization whose confidence (the probability of being within one keyframe) is below "
+                             "this counts as low",
+                             FIELD(follower.min_confidence))));
   t.push_back(numberRow("slow_after_frames", fol, 1, 1000, "frames",
                         "Low-confidence localizations in a row before slowing", FIELD(follower.slow_after_frames)));
   t.push_back(numberRow("stop_after_frames", fol, 1, 1000, "frames",
@@ -311,12 +319,12 @@ std::vector<ParameterSpec> makeTable()
                         FIELD(follower.stop_after_frames)));
   t.push_back(numberRow("slow_factor", fol, 0, 1, "", "Fraction of the speed while slowing",
                         FIELD(follower.slow_factor)));
-  t.push_back(numberRow("watchdog_timeout", fol, 0.01, 60, "s", "Stop when no localization came for this long",
-                        FIELD(follower.watchdog_timeout_s)));
-  t.push_back(numberRow("max_linear_accel", fol, 0.001, 100, "m/s^2", "Bound of the change of the forward speed",
-                        FIELD(follower.max_linear_accel)));
-  t.push_back(numberRow("max_angular_accel", fol, 0.001, 100, "rad/s^2", "Bound of the change of the turn rate",
-                        FIELD(follower.max_angular_accel)));
+  t.push_back(user(numberRow("watchdog_timeout", fol, 0.01, 60, "s", "Stop when no localization came for this long",
+                             FIELD(follower.watchdog_timeout_s))));
+  t.push_back(user(numberRow("max_linear_accel", fol, 0.001, 100, "m/s^2", "Bound of the change of the forward speed",
+                             FIELD(follower.max_linear_accel))));
+  t.push_back(user(numberRow("max_angular_accel", fol, 0.001, 100, "rad/s^2", "Bound of the change of the turn rate",
+                             FIELD(follower.max_angular_accel))));
   return t;
 }
 
@@ -397,6 +405,30 @@ std::string toString(ParameterGroup group)
   return "unknown";
 }
 
+std::string toString(ParameterTier tier)
+{
+  return tier == ParameterTier::kUser ? "user" : "advanced";
+}
+
+const std::vector<RemovedParameter>& removedParameters()
+{
+  static const std::vector<RemovedParameter> removed = {
+    { "contrast_min_std", formatNumber(kContrastMinStd),
+      "kContrastMinStd, contrast_enhancement.h: the eq. 2 std's floor only keeps a flat difference vector from "
+      "dividing by zero" },
+  };
+  return removed;
+}
+
+std::string removedParameterSentence(const std::string& name)
+{
+  for (const RemovedParameter& removed : removedParameters())
+    if (removed.name == name)
+      return name + " was removed in this version; it is now fixed at " + removed.fixed_at + " (" + removed.why +
+             ")";
+  return "";
+}
+
 std::string ParameterSpec::valueText(const ParameterSet& params) const
 {
   switch (type)
@@ -471,6 +503,8 @@ std::string setParameterChecked(const std::string& name, const std::string& valu
   if (refused)
     *refused = true;
   const ParameterSpec* spec = findParameter(name);
+  if (!spec && !removedParameterSentence(name).empty())
+    return removedParameterSentence(name) + "; the value given is ignored";
   if (!spec)
   {
     std::string sentence = "unknown parameter '" + name + "' refused";
@@ -522,21 +556,41 @@ std::string checkRanges(ParameterGroup group, const ParameterSet& params)
   return "";
 }
 
-std::string parameterHelp(const std::vector<ParameterGroup>& groups)
+std::string parameterHelp(const std::vector<ParameterGroup>& groups, bool with_advanced,
+                          const std::string& how_to_list)
 {
   std::ostringstream text;
+  const auto rows = [&text](ParameterGroup group, ParameterTier tier) {
+    for (const ParameterSpec& spec : parameterTable())
+      if (spec.group == group && spec.tier == tier)
+        text << "    " << spec.name << " = " << spec.defaultText() << "  (" << spec.rangeText() << ")\n"
+             << "        " << spec.doc << "\n";
+  };
+  size_t advanced = 0;
   for (const ParameterGroup group : groups)
   {
     text << "  " << toString(group) << ":\n";
-    for (const ParameterSpec& spec : parameterTable())
+    rows(group, ParameterTier::kUser);
+    advanced += parameterNamesOf(group, ParameterTier::kAdvanced).size();
+    if (with_advanced && !parameterNamesOf(group, ParameterTier::kAdvanced).empty())
     {
-      if (spec.group != group)
-        continue;
-      text << "    " << spec.name << " = " << spec.defaultText() << "  (" << spec.rangeText() << ")\n"
-           << "        " << spec.doc << "\n";
+      text << "  " << toString(group) << ", advanced:\n";
+      rows(group, ParameterTier::kAdvanced);
     }
   }
+  if (!with_advanced && advanced > 0)
+    text << "  and " << advanced << " advanced parameters, not shown (estimator internals, tie-breaking costs,\n"
+         << "  calibration, the SeqSLAM baseline's, ablation switches): " << how_to_list << " lists them\n";
   return text.str();
+}
+
+std::vector<std::string> parameterNamesOf(ParameterGroup group, ParameterTier tier)
+{
+  std::vector<std::string> names;
+  for (const ParameterSpec& spec : parameterTable())
+    if (spec.group == group && spec.tier == tier)
+      names.push_back(spec.name);
+  return names;
 }
 
 std::vector<std::string> similarParameterNames(const std::string& name)
@@ -572,6 +626,11 @@ bool applyParameter(const std::string& name, const std::string& value, Preproces
                     LocalizerParams* localizer, std::string* error)
 {
   const ParameterSpec* spec = findParameter(name);
+  if (!spec && !removedParameterSentence(name).empty())
+  {
+    *error = removedParameterSentence(name);
+    return false;
+  }
   if (!spec || spec->group == ParameterGroup::kMapRecorder || spec->group == ParameterGroup::kRouteFollower)
   {
     *error = "unknown parameter '" + name + "'";

@@ -42,6 +42,9 @@ std::string mistypedSentence(const std::string& name, const XmlRpc::XmlRpcValue&
 
 std::string unreadSentence(const std::string& name, const std::string& who, const std::set<std::string>& read)
 {
+  const std::string removed = removedParameterSentence(name);
+  if (!removed.empty())
+    return "~" + removed + "; the value given is ignored";
   std::string sentence = "~" + name + " is not a parameter of the " + who + " and is ignored";
   std::set<std::string> similar;
   for (const std::string& other : similarParameterNames(name))

@@ -74,7 +74,8 @@ std::vector<std::string> mistypedParameters(const ros::NodeHandle& private_nh)
 }
 
 /// "~ring_bufer_rows is not a parameter of the <who> and is ignored (did you mean ring_buffer_rows?).
-/// It reads: a, b, c".
+/// It reads: a, b, c"; for a parameter this version removed, "~" + removedParameterSentence(name) + "; the value
+/// given is ignored".
 std::string unreadSentence(const std::string& name, const std::string& who, const std::set<std::string>& read);
 
 /// "a, b, c".

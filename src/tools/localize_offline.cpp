@@ -38,11 +38,12 @@ double secondsSince(Clock::time_point start)
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-void usage(std::ostream& out)
+void usage(std::ostream& out, bool with_advanced = false)
 {
   out << "usage: localize_offline --map PATH --query PATH --output results.csv [--params params.yaml]\n"
          "                        [--method dtw|seqslam] [--topic TOPIC] [--set name=value ...]\n"
          "                        [--save-map MAP_FILE] [--progress auto|bar|lines|off] [--quiet]\n"
+         "       localize_offline --help | --help-advanced\n"
          "  PATH: a folder of images (sorted by file name), a bag with an image topic, or a map file\n"
          "        written by the map recorder (its stored preprocessing parameters are used; any given\n"
          "        with --params or --set must agree with them).\n"
@@ -55,8 +56,11 @@ void usage(std::ostream& out)
          "  --progress: on stderr, while loading and localizing: a line redrawn in place (bar), a line at every\n"
          "        10 % (lines), nothing (off); auto (default): bar on a terminal, else lines after 2 s; off with --quiet.\n"
          "  Output CSV columns: query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n"
-         "\nParameters (name = default  (range unit), then what it is):\n"
-      << alr::parameterHelp({ alr::ParameterGroup::kPreprocessor, alr::ParameterGroup::kLocalizer });
+         "\nParameters (name = default  (range unit), then what it is"
+      << (with_advanced ? "; the advanced ones after each group's" : "; those a user sets for the robot and route")
+      << "):\n"
+      << alr::parameterHelp({ alr::ParameterGroup::kPreprocessor, alr::ParameterGroup::kLocalizer }, with_advanced,
+                            "localize_offline --help-advanced");
 }
 
 // Progress of a stage on stderr (stdout may carry the results: --output /dev/stdout). kBar: a line redrawn
@@ -202,6 +206,11 @@ int main(int argc, char** argv)
     else if (arg == "-h" || arg == "--help")
     {
       usage(std::cout);
+      return 0;
+    }
+    else if (arg == "--help-advanced")
+    {
+      usage(std::cout, true);
       return 0;
     }
     else

@@ -389,7 +389,7 @@ void BM_StraightforwardFrame(benchmark::State& state)
   const auto frame = [&]() {
     stream.next(query);
     straightforwardRow(query.data, map->data(), n, costs.data(), shifts.data());
-    arl::enhanceContrast(costs.data(), nullptr, n, params.contrast_window, params.contrast_min_std,
+    arl::enhanceContrast(costs.data(), nullptr, n, params.contrast_window, arl::kContrastMinStd,
                          params.contrast_clamp, 0.0f, ring.appendRow(0, n));
     return dtw.match(ring, 0, n, params.ring_buffer_rows, true);
   };
@@ -399,7 +399,7 @@ void BM_StraightforwardFrame(benchmark::State& state)
   {
     stream.next(query);
     difference.compareMany(query.data, map->data(), n, costs.data(), shifts.data(), true);
-    arl::enhanceContrast(costs.data(), nullptr, n, params.contrast_window, params.contrast_min_std,
+    arl::enhanceContrast(costs.data(), nullptr, n, params.contrast_window, arl::kContrastMinStd,
                          params.contrast_clamp, 0.0f, ring.appendRow(0, n));
   }
   int keyframe = 0;
@@ -744,7 +744,7 @@ void BM_NordlandStraightforward(benchmark::State& state)
     for (size_t q = 0; q < route.queries.size(); ++q)
     {
       straightforwardRow(route.queries[q].data, map.data(), n, costs.data(), shifts.data());
-      arl::enhanceContrast(costs.data(), nullptr, n, params.contrast_window, params.contrast_min_std,
+      arl::enhanceContrast(costs.data(), nullptr, n, params.contrast_window, arl::kContrastMinStd,
                            params.contrast_clamp, 0.0f, ring.appendRow(0, n));
       keyframes[q] = dtw.match(ring, 0, n, params.ring_buffer_rows, true).keyframe;
     }

@@ -271,7 +271,8 @@ TEST_F(ParameterFile, OneBadValueIsRefusedByNameAndTheGoodOnesAreUsed)
 
 TEST(ParameterTable, HelpShowsEachParameterWithDefaultRangeUnitAndMeaning)
 {
-  const std::string help = arl::parameterHelp({ arl::ParameterGroup::kPreprocessor, arl::ParameterGroup::kLocalizer });
+  const std::string help = arl::parameterHelp({ arl::ParameterGroup::kPreprocessor, arl::ParameterGroup::kLocalizer },
+                                              true);
   EXPECT_NE(std::string::npos,
             help.find("    ring_buffer_rows = 30  (3 .. 1000 frames)\n        K: frames in the sequence window"))
       << help;
@@ -280,6 +281,118 @@ TEST(ParameterTable, HelpShowsEachParameterWithDefaultRangeUnitAndMeaning)
   EXPECT_EQ(std::string::npos, help.find("every_nth")) << "the recorder's parameters are not asked for";
   for (const std::string& name : arl::parameterNames())
     EXPECT_NE(std::string::npos, help.find("    " + name + " = ")) << name;
+}
+
+// The user tier (ParameterTier): what a user sets for the robot and the route. Named here row by row, in
+// table order, so that a row moving between tiers is a deliberate change of this test (issue 30, item 5:
+// about a dozen for the localizer).
+TEST(ParameterTiers, TheUserTierIsTheseRowsAndEveryOtherIsAdvanced)
+{
+  using Names = std::vector<std::string>;
+  const Names preprocessor = { "output_width", "output_height", "normalization", "filter_window",
+                               "normalization_strength", "sky_fraction" };
+  const Names localizer = { "method",
+                            "ring_buffer_rows",              // K
+                            "max_step",                      // s
+                            "max_shift_px",                  // m
+                            "homing_max_shift_px",
+                            "homing_max_vertical_shift_px",
+                            "contrast_window",               // n
+                            "search_radius",
+                            "confidence_threshold",
+                            "horizontal_fov_deg",
+                            "fill_frame_gaps",
+                            "start_keyframe",
+                            "end_of_route_keyframes" };
+  const Names recorder = { "every_nth", "min_time_gap", "min_appearance_change", "min_distance" };
+  const Names follower = { "homing_gain",      "max_homing_turn_rate", "speed_factor",     "min_confidence",
+                           "watchdog_timeout", "max_linear_accel",     "max_angular_accel" };
+  EXPECT_EQ(preprocessor, arl::parameterNamesOf(arl::ParameterGroup::kPreprocessor, arl::ParameterTier::kUser));
+  EXPECT_EQ(localizer, arl::parameterNamesOf(arl::ParameterGroup::kLocalizer, arl::ParameterTier::kUser));
+  EXPECT_EQ(recorder, arl::parameterNamesOf(arl::ParameterGroup::kMapRecorder, arl::ParameterTier::kUser));
+  EXPECT_EQ(follower, arl::parameterNamesOf(arl::ParameterGroup::kRouteFollower, arl::ParameterTier::kUser));
+  EXPECT_LE(localizer.size(), 15u);
+  // The rest of the 74 rows (9 + 50 + 4 + 11) is advanced: 3 of the preprocessor, 37 of the localizer,
+  // none of the recorder, 4 of the follower.
+  EXPECT_EQ(74u, arl::parameterTable().size());
+  EXPECT_EQ(3u, arl::parameterNamesOf(arl::ParameterGroup::kPreprocessor, arl::ParameterTier::kAdvanced).size());
+  EXPECT_EQ(37u, arl::parameterNamesOf(arl::ParameterGroup::kLocalizer, arl::ParameterTier::kAdvanced).size());
+  EXPECT_EQ(0u, arl::parameterNamesOf(arl::ParameterGroup::kMapRecorder, arl::ParameterTier::kAdvanced).size());
+  EXPECT_EQ((Names{ "homing_time_constant", "slow_after_frames", "stop_after_frames", "slow_factor" }),
+            arl::parameterNamesOf(arl::ParameterGroup::kRouteFollower, arl::ParameterTier::kAdvanced));
+  EXPECT_EQ("user", arl::toString(arl::ParameterTier::kUser));
+  EXPECT_EQ("advanced", arl::toString(arl::ParameterTier::kAdvanced));
+}
+
+TEST(ParameterTiers, HelpListsTheUserTierAndSaysHowToListTheAdvancedOnes)
+{
+  const std::vector<arl::ParameterGroup> groups = { arl::ParameterGroup::kPreprocessor,
+                                                    arl::ParameterGroup::kLocalizer };
+  const std::string help = arl::parameterHelp(groups, false, "tool --help-advanced");
+  const std::string all = arl::parameterHelp(groups, true, "tool --help-advanced");
+  for (const arl::ParameterSpec& spec : arl::parameterTable())
+  {
+    if (spec.group != arl::ParameterGroup::kPreprocessor && spec.group != arl::ParameterGroup::kLocalizer)
+      continue;
+    const bool in_help = help.find("    " + spec.name + " = ") != std::string::npos;
+    EXPECT_EQ(spec.tier == arl::ParameterTier::kUser, in_help) << spec.name;
+    EXPECT_NE(std::string::npos, all.find("    " + spec.name + " = ")) << spec.name;
+  }
+  // 3 advanced rows of the preprocessor and 37 of the localizer (the test above names the others).
+  EXPECT_NE(std::string::npos, help.find("  and 40 advanced parameters, not shown")) << help;
+  EXPECT_NE(std::string::npos, help.find("tool --help-advanced lists them\n")) << help;
+  EXPECT_EQ(std::string::npos, all.find("not shown")) << all;
+  // With them: each group's advanced rows after its user rows, under their own heading.
+  const size_t localizer = all.find("  localizer:\n"), advanced = all.find("  localizer, advanced:\n");
+  ASSERT_NE(std::string::npos, localizer);
+  ASSERT_NE(std::string::npos, advanced);
+  EXPECT_LT(localizer, all.find("    end_of_route_keyframes = "));
+  EXPECT_LT(all.find("    end_of_route_keyframes = "), advanced);
+  EXPECT_LT(advanced, all.find("    stop_penalty = "));
+  // A group without advanced rows has no such heading and no count.
+  const std::string recorder = arl::parameterHelp({ arl::ParameterGroup::kMapRecorder }, false, "x");
+  EXPECT_EQ(std::string::npos, recorder.find("advanced")) << recorder;
+}
+
+TEST_F(ParameterFile, ARemovedNameGetsAWarningWithTheValueItIsFixedAtAndTheOthersAreUsed)
+{
+  // contrast_min_std was a row of the table until it became kContrastMinStd (it only keeps eq. 2 from
+  // dividing by zero). A params file written for the earlier version still names it.
+  ASSERT_EQ(nullptr, arl::findParameter("contrast_min_std"));
+  EXPECT_FLOAT_EQ(0.01f, arl::kContrastMinStd);
+  const std::string sentence = arl::removedParameterSentence("contrast_min_std");
+  EXPECT_EQ(0u, sentence.find("contrast_min_std was removed in this version; it is now fixed at 0.01 (")) << sentence;
+  EXPECT_EQ(')', sentence.back()) << sentence;
+  EXPECT_NE(std::string::npos, sentence.find("kContrastMinStd")) << sentence;
+  EXPECT_EQ("", arl::removedParameterSentence("ring_buffer_rows"));
+  EXPECT_EQ("", arl::removedParameterSentence("contrast_min_sd"));
+  for (const arl::RemovedParameter& removed : arl::removedParameters())
+    EXPECT_EQ(nullptr, arl::findParameter(removed.name)) << removed.name << " is removed and in the table";
+
+  std::ofstream(path_) << "localizer:\n  ring_buffer_rows: 10\n  contrast_min_std: 0.05\n  max_step: 3\n";
+  std::vector<arl::ParameterEntry> entries;
+  std::vector<std::string> warnings;
+  std::string error;
+  ASSERT_TRUE(arl::readParameterFile(path_, &entries, &error)) << error;
+  ASSERT_TRUE(arl::applyParameterEntriesChecked(path_, entries, &preprocessing_, &localizer_, &warnings, &error))
+      << error;
+  ASSERT_EQ(1u, warnings.size());
+  EXPECT_EQ(path_ + ":3: " + sentence + "; the value given is ignored", warnings[0]);
+  EXPECT_EQ(10, localizer_.ring_buffer_rows);
+  EXPECT_EQ(3, localizer_.dtw.max_step);
+  // One value at a time (--set, the nodelet): refused with the same sentence, nothing changed.
+  arl::ParameterSet params;
+  bool refused = false;
+  EXPECT_EQ(sentence + "; the value given is ignored",
+            arl::setParameterChecked("contrast_min_std", "0.05", &params, &refused));
+  EXPECT_TRUE(refused);
+  arl::PreprocessingParams preprocessing;
+  arl::LocalizerParams localizer;
+  EXPECT_FALSE(arl::applyParameter("contrast_min_std", "0.05", &preprocessing, &localizer, &error));
+  EXPECT_EQ(sentence, error);
+  // The strict loader stops on it, naming the line and saying why.
+  EXPECT_EQ(path_ + ":3: " + sentence,
+            load("localizer:\n  ring_buffer_rows: 10\n  contrast_min_std: 0.05\n  max_step: 3\n"));
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
-// README.md's parameter tables against the core's parameter table (parameters.h): every parameter of the
-// preprocessor, localizer and map recorder groups is named in a row of a README table, and where the row
-// gives a default for it, that default is the core's. Fails when the README drifts from the core.
+// README.md's and doc/usage.md's parameter tables against the core's parameter table (parameters.h): every
+// parameter of the user tier is named in a row of a README table and no advanced one is; every parameter
+// is named in a row of doc/usage.md's All parameters, whose tier column is the table's; where a row gives a
+// default for it, that default is the core's. Fails when the README or the doc drifts from the core.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -25,6 +26,7 @@ struct ReadmeEntry
 {
   std::string default_text;
   std::string row;
+  std::string fourth_cell;  ///< trimmed; in doc/usage.md's tables, the tier ("user" or "advanced")
 };
 
 std::string trim(const std::string& s)
@@ -72,7 +74,7 @@ std::map<std::string, ReadmeEntry> readmeParameterRows(const std::string& path)
       d = d.substr(0, d.find(' '));  // "0 (off)" -> "0"
     }
     for (size_t i = 0; i < names.size(); ++i)
-      rows[names[i]] = { defaults.size() == names.size() ? defaults[i] : "", line };
+      rows[names[i]] = { defaults.size() == names.size() ? defaults[i] : "", line, trim(cells[4]) };
   }
   return rows;
 }
@@ -106,6 +108,7 @@ bool sameDefault(const arl::ParameterSpec& spec, const std::string& written, std
 }
 
 const std::string kReadme = std::string(ALONG_ROUTE_SOURCE_DIR) + "/README.md";
+const std::string kUsage = std::string(ALONG_ROUTE_SOURCE_DIR) + "/doc/usage.md";
 
 TEST(ReadmeParameters, TheRowReaderTakesNamesAndDefaultsInOrder)
 {
@@ -135,14 +138,20 @@ TEST(ReadmeParameters, TheRowReaderTakesNamesAndDefaultsInOrder)
   EXPECT_TRUE(sameDefault(*arl::findParameter("skip_penalty"), "0.85", &core));
 }
 
-TEST(ReadmeParameters, EveryParameterIsInAReadmeTableWithTheCoreDefault)
+TEST(ReadmeParameters, EachUserTierParameterIsInAReadmeTableWithTheCoreDefaultAndNoAdvancedOneIs)
 {
   const auto rows = readmeParameterRows(kReadme);
   ASSERT_FALSE(rows.empty()) << "no parameter table rows read from " << kReadme;
-  int defaults_checked = 0;
+  int defaults_checked = 0, user = 0;
   for (const arl::ParameterSpec& spec : arl::parameterTable())
   {
     const auto row = rows.find(spec.name);
+    if (spec.tier == arl::ParameterTier::kAdvanced)
+    {
+      EXPECT_TRUE(row == rows.end()) << spec.name << " is advanced and in a README table: " << row->second.row;
+      continue;
+    }
+    ++user;
     if (row == rows.end())
     {
       ADD_FAILURE() << spec.name << " (" << arl::toString(spec.group) << ") is in no parameter table row of "
@@ -157,8 +166,36 @@ TEST(ReadmeParameters, EveryParameterIsInAReadmeTableWithTheCoreDefault)
         << row->second.row;
     ++defaults_checked;
   }
-  // Most rows give their defaults; a reader that stopped finding them would pass vacuously.
-  EXPECT_GE(defaults_checked, 40);
+  // Every user row gives its default; a reader that stopped finding them would pass vacuously.
+  EXPECT_EQ(30, user);  // 6 + 13 + 4 + 7 (test_parameters.cpp, ParameterTiers)
+  EXPECT_EQ(user, defaults_checked);
+}
+
+TEST(ReadmeParameters, EveryParameterIsInTheDocsFullTableWithItsTierAndTheCoreDefault)
+{
+  const auto rows = readmeParameterRows(kUsage);
+  ASSERT_FALSE(rows.empty()) << "no parameter table rows read from " << kUsage;
+  int defaults_checked = 0;
+  for (const arl::ParameterSpec& spec : arl::parameterTable())
+  {
+    const auto row = rows.find(spec.name);
+    if (row == rows.end())
+    {
+      ADD_FAILURE() << spec.name << " (" << arl::toString(spec.group) << ") is in no parameter table row of "
+                    << kUsage;
+      continue;
+    }
+    EXPECT_EQ(arl::toString(spec.tier), row->second.fourth_cell) << spec.name << ": " << row->second.row;
+    std::string core;
+    EXPECT_TRUE(sameDefault(spec, row->second.default_text, &core))
+        << spec.name << ": doc/usage.md says " << row->second.default_text << ", the core table " << core << "\n  "
+        << row->second.row;
+    ++defaults_checked;
+  }
+  EXPECT_EQ(arl::parameterTable().size(), static_cast<size_t>(defaults_checked));
+  // A removed parameter is named there as removed, not in a row.
+  for (const arl::RemovedParameter& removed : arl::removedParameters())
+    EXPECT_TRUE(rows.find(removed.name) == rows.end()) << removed.name << " is removed and in a row";
 }
 
 }  // namespace

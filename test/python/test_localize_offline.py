@@ -413,20 +413,57 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertEqual([r['status'] for r in rows[:29]], ['initializing'] * 29)
         self.assertIn('tracking', [r['status'] for r in rows[29:]])
 
-    def test_help_lists_every_parameter_with_default_range_and_meaning(self):
+    def test_help_lists_the_user_tier_and_help_advanced_every_parameter(self):
+        # issue 30, item 5: --help shows the parameters a user sets for the robot and route, with their
+        # default, range and meaning, and says how many advanced ones there are and how to list them.
         result = self.run_runner('--help')
         self.assertEqual(result.returncode, 0, result.stderr)
         self.assertIn('    ring_buffer_rows = 30  (3 .. 1000 frames)\n'
                       '        K: frames in the sequence window', result.stdout)
         self.assertIn('    normalization = divisive  (patch | divisive | none)\n', result.stdout)
+        self.assertNotIn('skip_penalty', result.stdout)
+        self.assertIn('  and 40 advanced parameters, not shown', result.stdout)
+        self.assertIn('localize_offline --help-advanced lists them', result.stdout)
+
+        def listed(stdout):
+            return [line.split(' = ')[0].strip() for line in stdout.splitlines()
+                    if line.startswith('    ') and not line.startswith('        ') and ' = ' in line]
+        user = listed(result.stdout)
+        self.assertEqual(len(user), 19)  # 6 of the preprocessor, 13 of the localizer (test_core, ParameterTiers)
+        for name in ('max_step', 'max_shift_px', 'contrast_window', 'output_width', 'start_keyframe'):
+            self.assertIn(name, user)
+        for name in ('min_texture_ratio', 'seqslam_sequence_length', 'parallel', 'output_gain'):
+            self.assertNotIn(name, user)
+        # With --help-advanced every name the parameter file takes is listed (once), with a default and a
+        # line of meaning: the user tier's and the 40 others.
+        result = self.run_runner('--help-advanced')
+        self.assertEqual(result.returncode, 0, result.stderr)
         self.assertIn('    skip_penalty = 0.85  (0 .. 10 cost)\n', result.stdout)
-        # Every name the parameter file takes is listed (once), with a default and a line of meaning.
-        listed = [line.split(' = ')[0].strip() for line in result.stdout.splitlines()
-                  if line.startswith('    ') and not line.startswith('        ') and ' = ' in line]
-        self.assertEqual(len(listed), len(set(listed)))
-        self.assertGreaterEqual(len(listed), 50)
+        self.assertIn('  localizer, advanced:\n', result.stdout)
+        self.assertNotIn('not shown', result.stdout)
+        every = listed(result.stdout)
+        self.assertEqual(len(every), len(set(every)))
+        self.assertEqual(len(every), 59)
+        self.assertTrue(set(user) < set(every))
         for name in ('max_step', 'min_texture_ratio', 'output_width', 'seqslam_sequence_length', 'parallel'):
-            self.assertIn(name, listed)
+            self.assertIn(name, every)
+
+    def test_a_removed_parameter_in_the_params_file_is_named_with_the_value_it_is_fixed_at(self):
+        # contrast_min_std was a parameter until it became a constant (0.01, its default): a params file
+        # written for the earlier version still runs, and says what became of it.
+        params = os.path.join(self.tmp, 'removed.yaml')
+        with open(params, 'w') as f:
+            f.write('localizer:\n  start_keyframe: -1\n  contrast_min_std: 0.05\n  min_init_frames: 30\n')
+        output = os.path.join(self.tmp, 'removed.csv')
+        result = self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output,
+                                 '--params', params)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn('removed.yaml:3: contrast_min_std was removed in this version; it is now fixed at 0.01 (',
+                      result.stderr)
+        with open(output) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual([r['status'] for r in rows[:29]], ['initializing'] * 29)  # min_init_frames: 30 used
+        self.assertIn('tracking', [r['status'] for r in rows[29:]])
 
     def test_preprocessing_given_for_a_map_file_must_agree_with_it(self):
         # A map file's keyframes were preprocessed with its stored parameters; a query preprocessed with

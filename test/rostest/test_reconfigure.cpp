@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include "glue/private_parameters.h"
 #include "glue/reconfigure.h"
 
 namespace arl = along_route_localization;
@@ -144,6 +145,16 @@ void expectCfgAgreesWithTheTable(arl::ParameterGroup group, bool all_rows)
   std::set<std::string> in_cfg;
   for (const auto& cfg_group : description.groups)
   {
+    // The tiers (ParameterTier): the user tier at the top level ("Default"), the advanced one in the group
+    // "advanced", which rqt_reconfigure shows collapsed; no other group.
+    ASSERT_TRUE(cfg_group.name == "Default" || cfg_group.name == "advanced") << cfg_group.name;
+    const arl::ParameterTier tier =
+        cfg_group.name == "Default" ? arl::ParameterTier::kUser : arl::ParameterTier::kAdvanced;
+    if (tier == arl::ParameterTier::kAdvanced)
+    {
+      EXPECT_EQ("collapse", cfg_group.type);
+      EXPECT_FALSE(cfg_group.parameters.empty());
+    }
     for (const dynamic_reconfigure::ParamDescription& param : cfg_group.parameters)
     {
       SCOPED_TRACE(param.name);
@@ -151,6 +162,7 @@ void expectCfgAgreesWithTheTable(arl::ParameterGroup group, bool all_rows)
       const arl::ParameterSpec* spec = arl::findParameter(param.name);
       ASSERT_NE(nullptr, spec) << "not in the parameter table";
       EXPECT_EQ(arl::toString(group), arl::toString(spec->group));
+      EXPECT_EQ(arl::toString(spec->tier), arl::toString(tier)) << "the .cfg puts it in group " << cfg_group.name;
       EXPECT_EQ(spec->doc + " [" + spec->rangeText() + "]", param.description);
       const arl::ParameterSet defaults;
       if (spec->type == arl::ParameterType::kChoice)
@@ -205,6 +217,65 @@ TEST(Reconfigure, TheCfgFilesAgreeWithTheParameterTable)
   expectCfgAgreesWithTheTable<arl::LocalizerConfig>(arl::ParameterGroup::kLocalizer, false);
   expectCfgAgreesWithTheTable<arl::MapRecorderConfig>(arl::ParameterGroup::kMapRecorder, true);
   expectCfgAgreesWithTheTable<arl::RouteFollowerConfig>(arl::ParameterGroup::kRouteFollower, true);
+}
+
+TEST(Reconfigure, AParameterOfTheCollapsedGroupIsSetByItsNameAsBefore)
+{
+  // What dynparam set /localizer stop_penalty 0.5 and rqt_reconfigure send: a Config message naming the
+  // values changed, flat, whatever group the .cfg puts them in.
+  dynamic_reconfigure::Config message;
+  dynamic_reconfigure::DoubleParameter stop_penalty;
+  stop_penalty.name = "stop_penalty";
+  stop_penalty.value = 0.5;
+  message.doubles.push_back(stop_penalty);
+  dynamic_reconfigure::IntParameter lost_after_frames;
+  lost_after_frames.name = "lost_after_frames";
+  lost_after_frames.value = 4;
+  message.ints.push_back(lost_after_frames);
+  arl::LocalizerConfig config = arl::LocalizerConfig::__getDefault__();
+  ASSERT_TRUE(config.__fromMessage__(message));
+  EXPECT_DOUBLE_EQ(0.5, config.stop_penalty);
+  EXPECT_EQ(4, config.lost_after_frames);
+  const arl::LocalizerParams params = arl::toParams(config, arl::LocalizerParams());
+  EXPECT_FLOAT_EQ(0.5f, params.dtw.stop_penalty);
+  EXPECT_EQ(4, params.lost_after_frames);
+  // And what dynparam get lists: every parameter by its name, the user tier's and the advanced group's.
+  dynamic_reconfigure::Config all;
+  config.__toMessage__(all);
+  std::set<std::string> listed;
+  for (const auto& d : all.doubles)
+    listed.insert(d.name);
+  for (const auto& i : all.ints)
+    listed.insert(i.name);
+  for (const auto& s : all.strs)
+    listed.insert(s.name);
+  for (const auto& b : all.bools)
+    listed.insert(b.name);
+  EXPECT_EQ(arl::configParameterNames<arl::LocalizerConfig>(), listed);
+  EXPECT_EQ(13u, listed.size());  // 8 of the user tier, 5 advanced (Localizer.cfg)
+  EXPECT_TRUE(listed.count("stop_penalty") && listed.count("ring_buffer_rows"));
+  // The group starts collapsed: the initial state the server gives it (__fromServer__, setInitialState) is
+  // false, which rqt_reconfigure shows as a closed group.
+  bool advanced_listed = false;
+  for (const auto& group : arl::LocalizerConfig::__getGroupDescriptions__())
+    if (group->name == "advanced")
+    {
+      advanced_listed = true;
+      EXPECT_FALSE(group->state);
+      EXPECT_EQ("collapse", group->type);
+    }
+  EXPECT_TRUE(advanced_listed);
+}
+
+TEST(Reconfigure, ARemovedPrivateParameterIsNamedAsRemovedWithItsFixedValue)
+{
+  // ~contrast_min_std in a launch file of the earlier version: not "misspelt?", but what became of it.
+  const std::string sentence = arl::unreadSentence("contrast_min_std", "localizer", { "ring_buffer_rows" });
+  EXPECT_EQ("~" + arl::removedParameterSentence("contrast_min_std") + "; the value given is ignored", sentence);
+  EXPECT_EQ(0u, sentence.find("~contrast_min_std was removed in this version; it is now fixed at 0.01")) << sentence;
+  EXPECT_EQ(0u, arl::unreadSentence("ring_bufer_rows", "localizer", { "ring_buffer_rows" })
+                    .find("~ring_bufer_rows is not a parameter of the localizer and is ignored (did you mean "
+                          "ring_buffer_rows?)"));
 }
 
 TEST(Reconfigure, ValuesOutsideTheWorkingRangeAreCorrectedAndBadChoicesKeepThePreviousValue)
