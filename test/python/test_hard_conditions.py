@@ -57,6 +57,7 @@ class ScoreTest(unittest.TestCase):
         # after: 7 is 3 off, 8 right -> regained after 1 frame; next 4 frames 7-10: 8, 9, 10 within one
         self.assertEqual(glare['regained_after'], 1)
         self.assertAlmostEqual(glare['within_one_after'], 0.75)
+        self.assertEqual(glare['lost_before'], 0)       # frames 0-2
         overall = figures['overall']
         self.assertEqual(overall['frames'], 12)
         self.assertAlmostEqual(overall['within_one'], 7 / 12.0)   # 0, 1, 2, 6, 8, 9 (lost, but right), 10
@@ -70,6 +71,11 @@ class ScoreTest(unittest.TestCase):
         self.assertIsNone(stretch['regained_after'])
         self.assertEqual(stretch['within_one_after'], 0.0)
         self.assertEqual(stretch['after_frames'], 2)
+        truth = [dict(query_index=str(i), teach_frame=str(i), condition='glare' if i >= 3 else '') for i in range(5)]
+        results = [dict(query_index=str(i), keyframe=str(i), status='lost' if i in (0, 2) else 'tracking')
+                   for i in range(5)]
+        self.assertEqual(run_hard_conditions.score(truth, results, after_frames=2)['conditions']['glare']
+                         ['lost_before'], 1)   # frames 1-2
 
 
 @unittest.skipIf(RUNNER is None or cv2 is None,
