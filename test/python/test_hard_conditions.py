@@ -58,6 +58,7 @@ class ScoreTest(unittest.TestCase):
         self.assertEqual(glare['regained_after'], 1)
         self.assertAlmostEqual(glare['within_one_after'], 0.75)
         self.assertEqual(glare['lost_before'], 0)       # frames 0-2
+        self.assertEqual(glare['max_error_after'], 3)   # frame 7
         overall = figures['overall']
         self.assertEqual(overall['frames'], 12)
         self.assertAlmostEqual(overall['within_one'], 7 / 12.0)   # 0, 1, 2, 6, 8, 9 (lost, but right), 10
