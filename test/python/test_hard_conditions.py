@@ -150,6 +150,7 @@ class HardConditionsTrackTest(unittest.TestCase):
     # and tracking resumed at query 152, right. Issue 30: weak evidence must not end in `lost`.
     @unittest.expectedFailure
     def test_low_texture_keeps_tracking(self):
+        """Expected failure with the defaults: queries 142-151 of the low-texture stretch lost (see above)."""
         self.check_no_loss('low-texture')
 
     def test_low_texture_no_jump_and_regained(self):
