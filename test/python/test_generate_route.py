@@ -201,5 +201,186 @@ class CommandLineTest(unittest.TestCase):
                 self.assertNotEqual(caught.exception.code, 0)
 
 
+class ConditionLayoutTest(unittest.TestCase):
+    """--conditions: which stretches, how strong, and the option's parsing."""
+
+    def test_parse_conditions(self):
+        self.assertEqual(generate_route.parse_conditions("all"), generate_route.CONDITIONS)
+        # kept in CONDITIONS order, spaces ignored
+        self.assertEqual(generate_route.parse_conditions("contrast-collapse, low-texture"),
+                         ("low-texture", "contrast-collapse"))
+        for bad in ("fog", "", "glare,snow", "all,glare"):
+            with self.assertRaises(ValueError):
+                generate_route.parse_conditions(bad)
+
+    def test_stretches_are_disjoint_sized_and_apart(self):
+        length = 149.5
+        for seed in range(1, 21):
+            stretches = generate_route.condition_stretches(length, np.random.default_rng([seed, 7]))
+            self.assertEqual(sorted(stretches), sorted(generate_route.CONDITIONS))
+            ordered = sorted(stretches.values())
+            for name, (start, end) in stretches.items():
+                low, high = generate_route.CONDITION_SHARES[name]
+                self.assertTrue(low * length <= end - start <= high * length, (seed, name, start, end))
+            self.assertGreaterEqual(ordered[0][0], 0.15 * length)
+            self.assertLessEqual(ordered[-1][1], 0.90 * length + 1e-9)
+            for (_, end), (start, _) in zip(ordered, ordered[1:]):
+                self.assertGreaterEqual(start - end, 0.10 * length - 1e-9, seed)
+
+    def test_the_same_places_whichever_conditions_are_picked(self):
+        one = generate_route.Conditions(("glare",), 100.0, np.random.default_rng([4, 7]))
+        every = generate_route.Conditions(generate_route.CONDITIONS, 100.0, np.random.default_rng([4, 7]))
+        self.assertEqual(one.stretches, every.stretches)
+        start, end = one.stretches["low-texture"]
+        middle = 0.5 * (start + end)
+        self.assertEqual(one.label(middle), "")           # not picked: no label, no effect
+        self.assertEqual(one.strength("low-texture", middle), 0.0)
+        self.assertEqual(every.label(middle), "low-texture")
+        self.assertTrue(0.8 <= every.collapse_weight <= 0.9)
+
+    def test_strength_ramps_at_the_ends(self):
+        conditions = generate_route.Conditions(generate_route.CONDITIONS, 100.0, np.random.default_rng([4, 7]))
+        start, end = conditions.stretches["glare"]   # ramp 1.5 m: 0.5 at the ends, 1 from 0.75 m inside
+        self.assertEqual(conditions.strength("glare", start - 0.01), 0.0)
+        self.assertAlmostEqual(conditions.strength("glare", start), 0.5)
+        self.assertAlmostEqual(conditions.strength("glare", start + 0.375), 0.75)
+        self.assertAlmostEqual(conditions.strength("glare", 0.5 * (start + end)), 1.0)
+        self.assertAlmostEqual(conditions.strength("glare", end), 0.5)
+        self.assertEqual(conditions.strength("glare", end + 0.01), 0.0)
+
+
+class HardConditionRenderingTest(unittest.TestCase):
+    """The effects on rendered frames, against numbers worked out from their definitions."""
+
+    @classmethod
+    def setUpClass(cls):
+        import cv2
+        cls.cv2 = cv2
+        cls.world = generate_route.World(30.0, np.random.default_rng([5, 1]))
+        cls.renderer = generate_route.Renderer(cls.world, generate_route.Lighting(**generate_route.REPEAT_LIGHT),
+                                               256, 192, math.radians(90), np.random.default_rng(3))
+
+    def gray64(self, image):
+        gray = self.cv2.cvtColor(image, self.cv2.COLOR_BGR2GRAY)
+        return self.cv2.resize(gray, (64, 32), interpolation=self.cv2.INTER_AREA).astype(np.float64)
+
+    def test_glare_on_a_flat_image(self):
+        r = self.renderer
+        flat = np.full((192, 256, 3), 100, np.uint8)
+        out = r._glare(flat, 0.3, 1.0, 0.3, 0.0)   # the sun straight ahead, on the horizon row
+        # f = 128 px, cx = 127.5, cy = 0.45 * 192 - 0.5 = 85.9; at the sun: 100 + 255 * (3 + 0.8 + 0.35) -> 255
+        self.assertEqual(int(out[86, 127, 0]), 255)
+        # column 0 of row 86: ray (-127.5, -0.1, 128) / |.|, angle to the axis acos(128 / 180.666) = 0.78501 rad;
+        # bloom 3 exp(-(0.78501 / 0.05)^2) ~ 0, halo 0.8 / (1 + (0.78501 / 0.15)^2) = 0.028178, veil 0.35;
+        # (100 + 255 * 0.378178) / 1.3 = 151.10
+        self.assertAlmostEqual(float(out[86, 0, 0]), 151.1, delta=1.0)
+        # half strength: (100 + 127.5 * 0.378178) / 1.15 = 128.88
+        self.assertAlmostEqual(float(r._glare(flat, 0.3, 0.5, 0.3, 0.0)[86, 0, 0]), 128.9, delta=1.0)
+        # the sun 90 deg to the left: the left edge (45 deg from it) is now the brightest column
+        side = r._glare(flat, 0.0, 1.0, math.pi / 2, 0.0)
+        self.assertGreater(int(side[86, 0, 0]), int(side[86, 255, 0]))
+
+    def test_glare_and_collapse_lower_the_contrast_of_a_frame(self):
+        x, y, heading = self.world.route.pose(12.0)
+        plain = self.gray64(self.renderer.render(x, y, heading))
+        glare = self.gray64(self.renderer.render(x, y, heading, None, (1.0, heading + 0.1, math.radians(4))))
+        # away from the sun (the ground, rows 20-31 of 32) the relative contrast std / mean drops
+        self.assertLess(glare[20:].std() / glare[20:].mean(), 0.8 * plain[20:].std() / plain[20:].mean())
+        white = self.gray64(self.renderer._expose(np.full((192, 256, 3), 255, np.uint8), None))
+        self.assertGreaterEqual(glare.max(), white.max() - 1.0)   # the bloom saturates (full scale, exposed)
+        # collapse 0.85 toward 185, without noise: std * 0.15, mean 0.15 mean + 0.85 * 185 (up to rounding)
+        fog = self.gray64(self.renderer.render(x, y, heading, None, None, (0.85, 185.0)))
+        self.assertAlmostEqual(fog.std() / plain.std(), 0.15, delta=0.01)
+        self.assertAlmostEqual(fog.mean(), 0.15 * plain.mean() + 0.85 * 185.0, delta=1.0)
+        np.testing.assert_array_equal(self.gray64(self.renderer.render(x, y, heading, None, (0.0, 0.0, 0.0),
+                                                                       (0.0, 185.0))), plain)
+
+    def test_low_texture_plain(self):
+        plain_world = generate_route.World(30.0, np.random.default_rng([5, 1]),
+                                           plain=(12.0, 20.0, np.random.default_rng([5, 8])))
+        # the same world elsewhere: the objects far from the plain are all still there
+        clearance = generate_route.World.PLAIN_CLEARANCE_M
+
+        def far(world):
+            points = np.array([[t[0], t[1]] for t in world.trees])
+            s = world.nearest_route_position(points)
+            keep = [t for t, position in zip(world.trees, s)
+                    if position < 12.0 - clearance - 5.0 or position > 20.0 + clearance + 5.0]
+            return [(t[0], t[1]) for t in keep]
+        self.assertEqual(far(plain_world), far(self.world))
+        self.assertGreater(len(self.world.trees), len(plain_world.trees))
+        for items in (plain_world.trees, plain_world.poles, plain_world.boulders, plain_world.houses):
+            if items:
+                s = plain_world.nearest_route_position(np.array([[i[0], i[1]] for i in items]))
+                self.assertFalse(((s >= 12.0) & (s <= 20.0)).any())
+        # near-uniform ground beside the track in the plain: the albedo 6 m to the left varies far less
+        # there than at the same offset outside it
+        def albedo_std(positions):
+            values = []
+            for s in positions:
+                x, y = plain_world.route.offset_point(s, 6.0)
+                col = int((x - plain_world.ground_origin[0]) / generate_route.GROUND_RES_M)
+                row = int((y - plain_world.ground_origin[1]) / generate_route.GROUND_RES_M)
+                values.append(plain_world.ground_albedo[row, col].mean())
+            return float(np.std(values))
+        self.assertLess(albedo_std(np.arange(14.0, 18.0, 0.1)), 0.25 * albedo_std(np.arange(2.0, 6.0, 0.1)))
+
+
+class ConditionsCommandLineTest(unittest.TestCase):
+    """--conditions on a short route (no bags: ROS not needed): the condition column, and that the option
+    changes only what it says."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix="test_generate_route_conditions_")
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp)
+
+    def generate(self, name, *extra):
+        out = os.path.join(self.tmp, name)
+        with contextlib.redirect_stdout(io.StringIO()) as stdout, contextlib.redirect_stderr(io.StringIO()):
+            code = generate_route.main(["--output", out, "--teach-frames", "40", "--width", "96", "--height", "64",
+                                        "--seed", "2", "--images", "--no-bags", "--progress", "off"] + list(extra))
+        self.assertEqual(code, 0)
+        with open(os.path.join(out, "ground_truth.csv")) as f:
+            return out, list(csv.DictReader(f)), stdout.getvalue()
+
+    def images(self, folder, run):
+        import cv2
+        path = os.path.join(folder, run + "_images")
+        return [cv2.imread(os.path.join(path, name)) for name in sorted(os.listdir(path))]
+
+    def test_repeat_only_conditions_touch_only_their_stretches(self):
+        base, base_rows, _ = self.generate("base")
+        hard, rows, summary = self.generate("hard", "--conditions", "glare,contrast-collapse")
+        self.assertNotIn("condition", base_rows[0])          # without the option: the columns of before
+        self.assertEqual(list(rows[0].keys()), list(base_rows[0].keys()) + ["condition"])
+        self.assertIn("conditions: glare", summary)
+        conditions = generate_route.Conditions(("glare", "contrast-collapse"), 39 * 0.5,
+                                               np.random.default_rng([2, 7]))
+        for row, base_row in zip(rows, base_rows):
+            self.assertEqual(row["condition"], conditions.label(float(row["route_position_m"])))
+            self.assertEqual({k: v for k, v in row.items() if k != "condition"}, base_row)
+        labels = [row["condition"] for row in rows]
+        self.assertIn("glare", labels)
+        self.assertIn("contrast-collapse", labels)
+        for a, b in zip(self.images(base, "teach"), self.images(hard, "teach")):
+            np.testing.assert_array_equal(a, b)                # the teach run is untouched
+        for row, a, b in zip(rows, self.images(base, "repeat"), self.images(hard, "repeat")):
+            if row["condition"]:
+                self.assertGreater(np.abs(a.astype(int) - b.astype(int)).mean(), 2.0, row)
+            else:
+                np.testing.assert_array_equal(a, b)
+
+    def test_bad_conditions_are_refused(self):
+        with contextlib.redirect_stderr(io.StringIO()) as stderr:
+            with self.assertRaises(SystemExit) as caught:
+                generate_route.main(["--output", self.tmp, "--conditions", "glare,snow"])
+        self.assertEqual(caught.exception.code, 2)
+        self.assertIn("--conditions takes a comma-separated list", stderr.getvalue())
+
+
 if __name__ == "__main__":
     unittest.main()
