@@ -150,7 +150,9 @@ struct LocalizerParams
   /// when they support another place, confidently, better than the tracked one. Otherwise (snow, fog, a
   /// featureless plain: the images neither confirm nor contradict the track) the track goes on, with the
   /// low confidence the images give it, its answer dead-reckoned at the cruise speed from the last
-  /// confident one until a frame is confident again. Off: every loss detection loses the track.
+  /// confident one until a frame is confident again. A track no evidence established yet (a known start
+  /// under its check) and one dead-reckoned past the route's last keyframe are lost as before. Off: every
+  /// loss detection loses the track.
   bool loss_needs_contradiction = false;
   /// While lost, answer with the dead-reckoned keyframe (the last tracked one, moved on at the cruise speed
   /// since the loss) with confidence 0, never the unconfirmed guess of the global search. Off: the guess.

@@ -703,7 +703,12 @@ SequenceMatch Localizer::matchSequence(const Frame& frame)
     EndPrior prior;
     if (!frame.global)
     {
-      first_choice = last_match_ - params_.dtw.exclusion_radius;
+      // The robot is between the last place the images confirmed and where the track went since: through
+      // frames without evidence (dark, copies of one view, fog) the answer moved on at a speed the images
+      // could not check, and may have run ahead of a robot that slowed down. So the new match may also end
+      // back at the last confident answer (a known start under check: the start keyframe).
+      const int confirmed = last_confident_ >= 0 ? last_confident_ : (start_check_ ? start_match_ : last_match_);
+      first_choice = std::min(last_match_, confirmed) - params_.dtw.exclusion_radius;
       last_choice = last_match_ + params_.dtw.max_step + params_.max_jump_ahead;
       prior = motionPrior(frame.repeated);
     }
@@ -774,7 +779,9 @@ void Localizer::trackStep(Frame* frame, SequenceMatch* match, bool confident)
   bool check_started = false;
   if (loss_.update(confident, frame->informative && !frame->repeated))  // new views only
   {
-    if (!params_.loss_needs_contradiction || last_confident_ < 0)
+    // A track that no evidence has established (no confident answer yet, or a known start still under
+    // its check: only assumed, dead-reckoned through the first frames) has nothing to coast on: lost.
+    if (!params_.loss_needs_contradiction || last_confident_ < 0 || frame->checking_start)
       loseTrack(match->keyframe);
     else if (state_ == State::kTracking)
     {
@@ -859,7 +866,19 @@ void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started
   }
   // A query that repeats the last view: the camera stood still, and so does the dead reckoning.
   if (!frame->repeated)
+  {
+    // Dead reckoning had already reached the last keyframe and the robot still moves on, showing new
+    // views: it has left the route's end, and no position along the route is left to coast on (a robot
+    // carried elsewhere from the end of the route was otherwise held there, kidnapped fold 3).
+    const bool past_the_end = coast_position_ >= static_cast<double>(map_->size() - 1) && frame->informative &&
+                              coastSpeed() > 0.0;
     coast_position_ = reckonedAhead(coast_position_);
+    if (past_the_end)
+    {
+      loseTrack(coast_position_);
+      return;
+    }
+  }
   match->keyframe = static_cast<int>(std::lround(coast_position_));
   run_position_ = -1.0;
 }

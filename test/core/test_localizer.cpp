@@ -1288,6 +1288,40 @@ TEST(Localizer, BlindedTheAnswerMovesAtTheRobotsOwnSpeed)
   EXPECT_LE(worst, 4) << "keyframes between the answer and the truth while blinded";
 }
 
+TEST(Localizer, AnAnswerThatRanAheadInTheDarkComesBackToWhereTheImagesShow)
+{
+  // The robot drives one keyframe per frame over keyframes 0..60, then stands still at keyframe 60 for
+  // 20 frames with its camera blinded (featureless queries), then drives on: keyframes 61, 62, ... Through
+  // the dark the answer moves on (the DTW's paths are free through featureless rows), to 71 here, past
+  // a robot that did not move. The robot is somewhere between the last place the images confirmed (60)
+  // and where the answer went since, so the new match may end anywhere there: once 4 new views outweigh
+  // the motion prior the answers are right (from the 5th frame after the dark on), and the track is never
+  // lost. Were the match to continue only from the last answer (ends from 71 - exclusion_radius = 66 on)
+  // keyframes 61..65 could not be chosen: frames 65 and 66 answered 78 and 80, and the loss detection
+  // then gave up a track that was right (6 frames lost).
+  const auto map = syntheticMap(200);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i <= 60; ++i)
+    ASSERT_EQ(i, localizer.process(keyframeCopy(*map, i)).keyframe);
+  const cv::Mat blind(map->height(), map->width(), CV_8UC1, cv::Scalar(128));
+  int last_blind = -1;
+  for (int j = 0; j < 20; ++j)
+    last_blind = localizer.process(blind).keyframe;
+  EXPECT_GE(last_blind, 66) << "the answer went on through the dark (else this test shows nothing)";
+  int wrong_from_5th = 0, lost = 0;
+  for (int i = 61; i <= 100; ++i)
+  {
+    const arl::LocalizationResult r = localizer.process(keyframeCopy(*map, i));
+    lost += r.status == LocalizationStatus::kLost ? 1 : 0;
+    if (i >= 65 && std::abs(r.keyframe - i) > 1)
+      ++wrong_from_5th;
+  }
+  std::printf("after the dark (the answer at %d): %d answers more than one keyframe off from the 5th frame, "
+              "%d lost\n", last_blind, wrong_from_5th, lost);
+  EXPECT_EQ(0, lost);
+  EXPECT_EQ(0, wrong_from_5th);
+}
+
 TEST(Localizer, FeaturelessQueryIsReportedUninformative)
 {
   const auto map = syntheticMap(40);
@@ -1920,6 +1954,68 @@ TEST(LocalizerStates, WithLossNeedsContradictionOnlyContraryEvidenceMovesTheTrac
     ASSERT_GE(moved, confirm - 1);
     EXPECT_EQ(std::string(confirm - 1, 'l'), marks.substr(moved - (confirm - 1), confirm - 1));
     EXPECT_EQ(std::string(marks.size() - moved, 'T'), marks.substr(moved)) << "the moved track holds";
+  }
+}
+
+TEST(LocalizerStates, WithLossNeedsContradictionATrackDeadReckonedPastTheRouteEndIsLost)
+{
+  // loss_needs_contradiction, a map of 80 keyframes: track keyframes 0..50, then the robot is carried to
+  // places the map does not hold and drives on (new, textured views). Once they fill most of the window
+  // the loss detection fires and the track coasts from the last confident answer at the cruise speed (1
+  // keyframe per frame), up to the last keyframe (79). A track dead-reckoned to the route's end that
+  // still sees new views has left the route: every frame after the first answer at the last keyframe is
+  // lost (one more answer there when the position rounded up to it). Dead reckoning held it at the last
+  // keyframe for good before (kidnapped from the end of the route, fold 3 of the cross-validation).
+  const int n = 80;
+  const auto map = syntheticMap(n);
+  arl::LocalizerParams params;
+  params.loss_needs_contradiction = true;
+  arl::Localizer localizer(map, params);
+  for (int i = 0; i <= 50; ++i)
+    ASSERT_EQ(i, localizer.process(keyframeCopy(*map, i)).keyframe);
+  std::string marks;  // per frame: c tracking status below the last keyframe, e at it, l lost
+  for (int j = 0; j < 45; ++j)
+  {
+    const arl::LocalizationResult r = localizer.process(randomFrame(62000 + j));
+    ASSERT_GE(r.keyframe, 0);
+    ASSERT_LT(r.keyframe, n);
+    marks += r.status == LocalizationStatus::kLost ? 'l' : r.keyframe >= n - 1 ? 'e' : 'c';
+  }
+  std::printf("carried away, 29 keyframes before the route's end: %s\n", marks.c_str());
+  const size_t at_end = marks.find('e');
+  ASSERT_NE(std::string::npos, at_end) << "the coasting reaches the last keyframe";
+  ASSERT_LT(at_end + 2, marks.size());
+  EXPECT_EQ(std::string(marks.size() - at_end - 2, 'l'), marks.substr(at_end + 2));
+}
+
+TEST(LocalizerStates, WithLossNeedsContradictionAKnownStartStillUnderItsCheckIsLostNotCoasted)
+{
+  // loss_needs_contradiction, start_keyframe 0 (K = 30): the first frames are keyframes 0, 1, ..., then
+  // 20 frames of places the map does not hold. After 6 frames from the start the start is still under
+  // its check (fewer than K new views since it) when the loss detection fires: a track that only the told
+  // start established, not a window of evidence, has nothing to coast on, so it is lost, as with the old
+  // rule (the frames from there on). After 60 frames the track is established: the same frames make it
+  // coast (no check finds another place for noise), never lost.
+  const auto map = syntheticMap(200);
+  arl::LocalizerParams params;
+  params.loss_needs_contradiction = true;
+  for (const int frames_from_start : { 6, 60 })
+  {
+    arl::Localizer localizer(map, params);
+    for (int i = 0; i < frames_from_start; ++i)
+      ASSERT_EQ(i, localizer.process(keyframeCopy(*map, i)).keyframe);
+    std::string marks;  // l lost, t tracking (coasting)
+    for (int j = 0; j < 20; ++j)
+      marks += localizer.process(randomFrame(63000 + j)).status == LocalizationStatus::kLost ? 'l' : 't';
+    std::printf("%d frames from the start, then 20 from nowhere: %s\n", frames_from_start, marks.c_str());
+    if (frames_from_start < params.ring_buffer_rows)
+    {
+      const size_t lost = marks.find('l');
+      ASSERT_NE(std::string::npos, lost) << "under the start's check: lost";
+      EXPECT_EQ(std::string(marks.size() - lost, 'l'), marks.substr(lost));
+    }
+    else
+      EXPECT_EQ(std::string(20, 't'), marks) << "an established track coasts";
   }
 }
 
