@@ -111,8 +111,9 @@ struct LocalizerParams
   /// end, so that a robot carried elsewhere is found there as soon as they show it, not K / 2 frames later
   /// when the whole window stops supporting the old place (recentCheck). Each such frame computes their
   /// whole-map rows (while a check goes on, only those of the frames since its last one), so it costs
-  /// about as much as a global frame (doc/results.md, Performance); after relocalization_rows checks in a
-  /// row found no place elsewhere the check rests until the track is supported again. At most K are used.
+  /// about as much as a global frame (doc/results.md, Performance); the check's window grows by each frame
+  /// it goes on for, up to K rows, and after K checks in a row found no place elsewhere the check rests
+  /// until the track is supported again. At most K are used.
   /// 0 = neither: an empty window after a loss, no check.
   int relocalization_rows = 8;
   /// Where the robot starts, on the first frame after construction or reset() (a new map, time going
@@ -351,7 +352,8 @@ private:
   void coastStep(Frame* frame, SequenceMatch* match, bool check_started);
   /// kTracking, on a new view: when the newest relocalization_rows rows alone do not support the track's end
   /// (its confidence over them below confidence_threshold), they are compared with the whole map
-  /// (trackContradicted); once init_confirm_frames such checks in a row found the same place moving as the
+  /// (trackContradicted), and so is each new view while the check goes on (its window growing to K rows);
+  /// once init_confirm_frames such checks in a row found the same place moving as the
   /// robot can, the track moves there (moveTrackOnConfirmation). The whole window, K rows, lags K / 2 frames behind a
   /// robot that was carried elsewhere; its newest rows do not.
   void recentCheck(Frame* frame, SequenceMatch* match);

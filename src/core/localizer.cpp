@@ -826,7 +826,13 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
     recent_confirmation_.clear();
     return;
   }
-  if (recent_unanswered_ >= rows)
+  // The check's window starts with the newest `rows` frames and grows by each frame it goes on for, up to K
+  // rows, as a global search's does: a place elsewhere shown by a few frames more than the newest `rows` is
+  // found by their evidence, weighed by K rows (trackContradicted). Kept at `rows`, a check ended unanswered
+  // after `rows` frames where the place came out just short of confident, and the track stayed on the old
+  // place until the whole window gave it up (kidnapped from the route's end: 57 frames).
+  const int check_window = params_.ring_buffer_rows;
+  if (recent_unanswered_ >= check_window)
   {
     // As many checks as the window has rows found no place elsewhere: every row now in it came after the
     // first unsupported one, so weak evidence, not another place. Checked again once the track is supported.
@@ -836,7 +842,7 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   // Contradicted: published lost (at the track's answer, confidence 0) until the checks confirm the other
   // place and the track moves there.
   frame->contradicted =
-      trackContradicted(match->keyframe, recent_checking_ ? 1 + recent_pending_ : 0, rows, &recent_ring_);
+      trackContradicted(match->keyframe, recent_checking_ ? 1 + recent_pending_ : 0, check_window, &recent_ring_);
   recent_checking_ = true;
   recent_pending_ = 0;
   recent_unanswered_ = frame->contradicted ? 0 : recent_unanswered_ + 1;
@@ -1026,7 +1032,8 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   const int n = static_cast<int>(map_->size());
   if (recent_count_ < 1)
     return false;  // nothing to weigh
-  if (new_rows > 0 && new_rows < window && ring->size() > 0 && ring->capacity() == window && ring->maxWidth() == n)
+  if (new_rows > 0 && new_rows < window && new_rows <= recent_count_ && ring->size() > 0 &&
+      ring->capacity() == window && ring->maxWidth() == n)
   {
     replayRecentQueries(new_rows, ring);  // the check goes on: only the frames since its last row are new
   }

@@ -1762,6 +1762,27 @@ std::vector<QueryFrame> offRouteQueries()
   return queries;
 }
 
+TEST(Localizer, CarriedFromTheRouteEndTheGrowingCheckFindsTheRobot)
+{
+  SKIP_WITHOUT_NORDLAND();
+  // Keyframes 0..99, then 200..299 (carried 100 ahead), then from the route's last keyframe back to
+  // 100..199 (the cross-validation's kidnapped scenario on this stretch). At the route's end the track
+  // stands at the last keyframes, and the band's wrong places support it now and then; the newest frames
+  // do not, and the check of them (recentCheck) finds the new place, its window growing with each frame
+  // until the place is confident over enough rows.
+  std::vector<QueryFrame> queries;
+  appendStretch(&queries, 0, 100);
+  appendStretch(&queries, 200, 100);
+  appendStretch(&queries, 100, 100);
+  const LostAndFound run = runQueries(queries);
+  const int ahead = run.framesToRelocalize(100), back = run.framesToRelocalize(200);
+  std::printf("carried 100 ahead: right again after %d frames; carried from the route's end: after %d\n", ahead,
+              back);
+  // measured 22 and 17; with the check's window kept at the newest 8 rows, 22 and 23
+  EXPECT_LE(ahead, 26);
+  EXPECT_LE(back, 20);
+}
+
 TEST(Localizer, LeavesTheRouteThenRelocalizes)
 {
   SKIP_WITHOUT_NORDLAND();
