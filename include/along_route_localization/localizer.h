@@ -119,8 +119,8 @@ struct LocalizerParams
   /// Where the robot starts, on the first frame after construction or reset() (a new map, time going
   /// back in a looping bag). >= 0: at this keyframe (teach and repeat: the repeat starts where the teach
   /// did), tracked from the first frame, every path starting there while that frame is in the window;
-  /// a global search over the same rows still runs, and takes over when it confirms another place
-  /// (startRefuted: a robot started mid-route). -1: unknown, a global search (min_init_frames,
+  /// a global search over the same rows still runs, and takes over when it confirms another place that
+  /// its first answer already showed (startRefuted: a robot started mid-route). -1: unknown, a global search (min_init_frames,
   /// init_confirm_frames) before any tracking. Must be below the map's size.
   int start_keyframe = 0;
   int min_init_frames = 5;            ///< frames before the first global answer
@@ -368,8 +368,10 @@ private:
   /// Status after construction or reset(): tracking from start_keyframe, or initializing.
   void start();
   /// While a known start (start_keyframe) is checked (the first K new views): the global search over the
-  /// same rows (*elsewhere, no start) confirmed a place other than the track's (`track`): the robot did
-  /// not start where it was told.
+  /// same rows (*elsewhere, no start) confirmed a place other than the track's (`track`), one the robot
+  /// could have driven to (max_step keyframes a frame) from the check's first global answer: the robot did
+  /// not start where it was told. A place confirmed after the answers went through other places first (a
+  /// robot beside its start, turning onto the route, fits look-alikes in turn) does not refute the start.
   bool startRefuted(const SequenceMatch& track, bool informative, SequenceMatch* elsewhere);
   /// The share of a full window's evidence a match has seen: its distinct views / K, at most 1.
   double evidenceShare(const SequenceMatch& match) const;
@@ -494,6 +496,8 @@ private:
   bool start_check_ = false;             // a known start is being checked (startRefuted)
   int rows_since_start_ = 0;             // rows appended since the known start (0: no frame answered yet)
   int views_since_start_ = 0;            // of them, informative new views
+  int start_first_answer_ = -1;          // the global search's first answer during the start's check (-1: none yet)
+  int start_first_answer_row_ = 0;       // rows_since_start_ at that answer
   int tracked_frames_ = 0;               // frames answered since tracking last started
   double cruise_speed_ = 1.0;            // keyframes per frame: the mean of cruise_samples_ samples
   int cruise_samples_ = 1;               // the nominal speed counts as the first

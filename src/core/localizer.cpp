@@ -181,6 +181,7 @@ void Localizer::start()
   frames_since_confident_ = 0;
   start_check_ = false;
   rows_since_start_ = views_since_start_ = 0;
+  start_first_answer_ = -1;
   recent_checking_ = false;
   recent_unanswered_ = recent_pending_ = check_pending_ = 0;
   recent_confirmation_.clear();
@@ -1169,13 +1170,27 @@ bool Localizer::startRefuted(const SequenceMatch& track, bool informative, Seque
     return false;
   *elsewhere = dtw_.match(ring_, 0, static_cast<int>(map_->size()), params_.ring_buffer_rows, false,
                           map_stats_.run.data());
+  if (start_first_answer_ < 0 && informative)
+  {
+    start_first_answer_ = elsewhere->keyframe;
+    start_first_answer_row_ = rows_since_start_;
+  }
   const bool confirmable =
       matchConfidence(*elsewhere, true, evidenceShare(*elsewhere)) >= params_.confidence_threshold;
   if (!confirmation_.update(elsewhere->keyframe, confirmable, informative))
     return false;
   confirmation_.clear();
   // Confirmed at the track's place (copies of one view count as one place): the start holds.
-  return std::abs(map_stats_.run[elsewhere->keyframe] - map_stats_.run[track.keyframe]) > params_.dtw.exclusion_radius;
+  if (std::abs(map_stats_.run[elsewhere->keyframe] - map_stats_.run[track.keyframe]) <= params_.dtw.exclusion_radius)
+    return false;
+  // The start is prior knowledge: another place refutes it only when the images showed that place from the
+  // check's first answer on (the robot could have driven from there to here). A robot started elsewhere is
+  // seen there from its first frames; a robot beside its start, still turning onto the route, fits no place
+  // well, and the answers go from one look-alike to another before one is confirmed.
+  const int advance = elsewhere->keyframe - start_first_answer_;
+  const int frames = rows_since_start_ - start_first_answer_row_;
+  return advance >= -params_.dtw.exclusion_radius &&
+         advance <= params_.dtw.max_step * frames + params_.dtw.exclusion_radius;
 }
 
 cv::Mat Localizer::renderDebugImage(int first_keyframe, int width, int scale) const

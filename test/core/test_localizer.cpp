@@ -284,6 +284,78 @@ TEST(Localizer, AStartElsewhereIsRefutedByTheGlobalSearch)
   EXPECT_NO_THROW(arl::Localizer(map, params));
 }
 
+namespace
+{
+
+// A view of keyframe `own` seen from beside the route, turned: mostly (94 %) like keyframe `alike` of
+// another place, a little like its own.
+cv::Mat besideTheRoute(const arl::RouteMap& map, int own, int alike)
+{
+  cv::Mat frame;
+  cv::addWeighted(map.keyframeMat(own), 0.06, map.keyframeMat(alike), 0.94, 0.0, frame);
+  return frame;
+}
+
+}  // namespace
+
+TEST(Localizer, AKnownStartIsKeptAgainstALookAlikeFoundAfterIt)
+{
+  // Issue 31 (the closed loop from 1 m beside its start, turned 10 deg: the start's check confirmed a
+  // look-alike place, 370 of 601, the follower steered by it, lost the track and stopped). Told keyframe 0,
+  // 200 keyframes, K = 20; the robot is at keyframe i on frame i. Frames 0-4 show keyframes 0-4: the
+  // global search's first answer (frame 4, min_init_frames rows) is keyframe 4, the start itself. Frames
+  // 5-19 are seen from beside the route (besideTheRoute, like keyframes 140, 141, ...): the global search
+  // goes over to the look-alike and, measured, confirms it on frame 15 (keyframe 150, 5 confident answers
+  // in a row; without the rule below the track moved there). From keyframe 4 on frame 4 the robot could
+  // not have reached 150 by frame 15 (at most max_step = 2 keyframes a frame, with the exclusion radius
+  // 5: 4 + 2 x 11 + 5 = 31): the start holds, and the answers stay on the route's start (the band, radius
+  // 40, never holds 140). Frames 20-34, on the route again: its own keyframes (on frames 20 and 21, the
+  // check over, the newest 8 frames, mostly beside the route, still contradict the track: published lost at
+  // the track's answer, recentCheck, until its own views support it again).
+  const auto map = syntheticMap(200);
+  arl::LocalizerParams params;
+  params.ring_buffer_rows = 20;
+  {
+    arl::Localizer localizer(map, params);
+    for (int i = 0; i < 35; ++i)
+    {
+      const bool beside = i >= 5 && i < 20;
+      const arl::LocalizationResult result =
+          localizer.process(beside ? besideTheRoute(*map, i, 140 + (i - 5)) : keyframeCopy(*map, i));
+      if (i < 20 || i >= 22)
+      {
+        EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "beside the start, frame " << i;
+      }
+      EXPECT_LE(result.keyframe, 2 * i) << "beside the start, frame " << i;
+      EXPECT_LT(result.keyframe, 40) << "beside the start, frame " << i;
+      if (i >= 25)
+      {
+        EXPECT_EQ(i, result.keyframe) << "beside the start, frame " << i;
+      }
+    }
+  }
+  // A robot really started at 140 (frames: keyframes 140, 141, ...) shows that place from the first
+  // answer on (keyframe 144 on frame 4): the start is refuted and the track moves there on the 8th frame
+  // (min_init_frames - 1 + init_confirm_frames - 1), as in AStartElsewhereIsRefutedByTheGlobalSearch.
+  {
+    arl::Localizer localizer(map, params);
+    const int switched = (params.min_init_frames - 1) + (params.init_confirm_frames - 1);
+    for (int i = 0; i < 30; ++i)
+    {
+      const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, 140 + i));
+      EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "started at 140, frame " << i;
+      if (i < switched)
+      {
+        EXPECT_LE(result.keyframe, 2 * i) << "started at 140, frame " << i;
+      }
+      else
+      {
+        EXPECT_EQ(140 + i, result.keyframe) << "started at 140, frame " << i;
+      }
+    }
+  }
+}
+
 TEST(Localizer, TheStartKeyframeIsNoStepOfTheCruiseSpeed)
 {
   // From a known start the first frame is answered at the start keyframe itself (not one ahead), and that

@@ -145,13 +145,11 @@ class FiguresTest(unittest.TestCase):
             closed_loop.write_params(path, extra)
             with open(path) as f:
                 params = yaml.safe_load(f)
-            self.assertEqual(params, {"localizer": {"horizontal_fov_deg": 90.0, "max_shift_px": 6,
-                                                    "init_confirm_frames": 30},
+            self.assertEqual(params, {"localizer": {"horizontal_fov_deg": 90.0, "max_shift_px": 6},
                                       "route_follower": {"homing_gain": 2.0}})
             closed_loop.write_params(path)
             with open(path) as f:
-                self.assertEqual(yaml.safe_load(f), {"localizer": {"horizontal_fov_deg": 90.0, "max_shift_px": 8,
-                                                                   "init_confirm_frames": 30}})
+                self.assertEqual(yaml.safe_load(f), {"localizer": {"horizontal_fov_deg": 90.0, "max_shift_px": 8}})
             with open(extra, "w") as f:
                 f.write("max_shift_px: 6\n")
             with self.assertRaises(ValueError):
