@@ -120,8 +120,8 @@ struct LocalizerParams
   /// back in a looping bag). >= 0: at this keyframe (teach and repeat: the repeat starts where the teach
   /// did), tracked from the first frame, every path starting there while that frame is in the window;
   /// a global search over the same rows still runs, and takes over when it confirms another place that
-  /// its first answer already showed (startRefuted: a robot started mid-route). -1: unknown, a global search (min_init_frames,
-  /// init_confirm_frames) before any tracking. Must be below the map's size.
+  /// its first answer already showed (startRefuted: a robot started mid-route). -1: unknown, a global
+  /// search (min_init_frames, init_confirm_frames) before any tracking. Must be below the map's size.
   int start_keyframe = 0;
   int min_init_frames = 5;            ///< frames before the first global answer
   /// Consecutive informative frames whose global answer is confident and advances 0..max_step keyframes
