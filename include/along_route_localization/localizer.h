@@ -341,7 +341,8 @@ private:
   void appendRow(const Frame& frame);
   /// The sequence match over the window: the DTW (band or whole map), or the baseline; last_path_ is set.
   SequenceMatch matchSequence(const Frame& frame);
-  /// While a known start is checked: startRefuted moves the track (and *match) to the confirmed place.
+  /// While a known start is checked: startRefuted moves the track (and *match) to the confirmed place,
+  /// unless the images confirm the track (confirmable as a global answer, and newestRowsSupport).
   void checkStart(Frame* frame, SequenceMatch* match);
   /// kInitializing, kLost: the global answer, once confirmed, starts a track.
   void searchStep(const Frame& frame, const SequenceMatch& match, bool confirmable);
@@ -407,6 +408,10 @@ private:
   /// Appends the eq. 2 row of keyframes [first, first + width); `global`: a global search (coarse on big maps).
   void computeRow(const uint8_t* query, float query_energy, bool query_informative, bool repeated_query, bool global,
                   int first, int width, CostRingBuffer* target = nullptr);
+  /// Whether the newest relocalization_rows rows alone, as a path over the frame's band ending at the track's
+  /// keyframe, confirm it (its place confidence over them at least confidence_threshold): then no check
+  /// weighs another place (recentCheck, checkStart). False while the window holds fewer rows.
+  bool newestRowsSupport(const Frame& frame, int track_keyframe);
   /// The loss detection fired on the track at `track_keyframe`: whether the last relocalization_rows frames
   /// (recent_queries_, this one the newest), compared with the whole map as a sequence, end at another
   /// place (farther than the exclusion radius, in runs) that is confidently better than every other place

@@ -749,6 +749,18 @@ void Localizer::checkStart(Frame* frame, SequenceMatch* match)
     confirmation_.update(-1, false, false);  // a missed frame: as in a global search (no search for it)
     return;
   }
+  // The images can confirm the start as well as refute it. While they confirm the track by the standard a
+  // global search confirms a place by (its place confidence weighed by the distinct views it has seen) and
+  // its newest frames alone support its end (as in recentCheck), no place elsewhere refutes it. A robot
+  // beside its start, turning onto the route, fits no place in its first frames, and a look-alike could win
+  // the global search over them after the robot was back on its route, the track's answers confident
+  // (issue 31, closed loop, seed 2 from +1 m +10 deg: refuted on the 27th frame, answers at 0.98 before).
+  if (matchConfidence(*match, true, evidenceShare(*match)) >= params_.confidence_threshold &&
+      newestRowsSupport(*frame, match->keyframe))
+  {
+    confirmation_.clear();
+    return;
+  }
   SequenceMatch elsewhere;
   if (!startRefuted(*match, frame->informative, &elsewhere))
     return;
@@ -818,9 +830,7 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   }
   // Do the newest rows alone support the track's end? The whole window may still, for K / 2 frames after
   // the robot was carried elsewhere.
-  const SequenceMatch newest = dtw_.match(ring_, frame->first, frame->width, rows, false, map_stats_.run.data(),
-                                          match->keyframe, match->keyframe);
-  if (matchConfidence(newest, true, 1.0) >= params_.confidence_threshold)
+  if (newestRowsSupport(*frame, match->keyframe))
   {
     recent_checking_ = false;
     recent_unanswered_ = 0;
@@ -1026,6 +1036,16 @@ void Localizer::loseTrack(double track_position)
 {
   lost_position_ = track_position;
   transition(State::kLost);
+}
+
+bool Localizer::newestRowsSupport(const Frame& frame, int track_keyframe)
+{
+  const int rows = std::min(params_.relocalization_rows, params_.ring_buffer_rows);
+  if (rows <= 0 || ring_.size() < rows)
+    return false;
+  const SequenceMatch newest = dtw_.match(ring_, frame.first, frame.width, rows, false, map_stats_.run.data(),
+                                          track_keyframe, track_keyframe);
+  return matchConfidence(newest, true, 1.0) >= params_.confidence_threshold;
 }
 
 bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, CostRingBuffer* ring)

@@ -356,6 +356,53 @@ TEST(Localizer, AKnownStartIsKeptAgainstALookAlikeFoundAfterIt)
   }
 }
 
+TEST(Localizer, AKnownStartTheImagesConfirmIsKeptAgainstALookAlike)
+{
+  // Issue 31 (closed loop, seed 2 from 1 m beside the start, turned 10 deg: a look-alike 249 was confirmed
+  // by the start's check on the 27th frame while the track's answers had been confident for 13 frames).
+  // 200 keyframes, K = 20, told keyframe 0; keyframes 140-179 look like 0-39 (70 % of their texture, 30 %
+  // their own). The first 5 frames show the look-alike's own texture (randomFrame(1140 + i): the robot
+  // beside its start sees something else), then the route's keyframes i. The global search's first answer
+  // is at the look-alike (144, frame 4), and measured, it confirms the look-alike (the first 5 rows fit
+  // nowhere else, the later ones fit it 70 %) on frame 8, when at most 2 x 4 + 5 keyframes from its
+  // first answer: reachable, and without the rule the track moved to 148 and stayed on the look-alike. The
+  // track's own answers are confirmed by then (frames 5-8 are its keyframes) and the newest 8 frames
+  // support it: the start holds, every answer from frame 5 on is the robot's own keyframe.
+  auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
+  for (int k = 0; k < 200; ++k)
+  {
+    cv::Mat frame = randomFrame(1000 + k);
+    if (k >= 140 && k < 180)
+      cv::addWeighted(randomFrame(1000 + k - 140), 0.7, frame, 0.3, 0.0, frame);
+    map->addKeyframe(frame, 1000000000LL * k);
+  }
+  arl::LocalizerParams params;
+  params.ring_buffer_rows = 20;
+  {
+    arl::Localizer localizer(map, params);
+    for (int i = 0; i < 35; ++i)
+    {
+      const arl::LocalizationResult result = localizer.process(i < 5 ? randomFrame(1140 + i) : keyframeCopy(*map, i));
+      EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "frame " << i;
+      EXPECT_LE(result.keyframe, 2 * i) << "frame " << i;
+      if (i >= 5)
+      {
+        EXPECT_EQ(i, result.keyframe) << "frame " << i;
+      }
+    }
+  }
+  // The same frames 0-7 at the look-alike, then the route: three own frames do not confirm the track
+  // yet when the look-alike is confirmed (frame 8), so the check refutes the start as before, a robot
+  // started there.
+  {
+    arl::Localizer localizer(map, params);
+    int answer = -1;
+    for (int i = 0; i < 9; ++i)
+      answer = localizer.process(i < 8 ? randomFrame(1140 + i) : keyframeCopy(*map, i)).keyframe;
+    EXPECT_EQ(148, answer);
+  }
+}
+
 TEST(Localizer, TheStartKeyframeIsNoStepOfTheCruiseSpeed)
 {
   // From a known start the first frame is answered at the start keyframe itself (not one ahead), and that
