@@ -123,6 +123,15 @@ struct LocalizerParams
   /// its first answer already showed (startRefuted: a robot started mid-route). -1: unknown, a global
   /// search (min_init_frames, init_confirm_frames) before any tracking. Must be below the map's size.
   int start_keyframe = 0;
+  /// The robot may be carried elsewhere (the kidnapped robot) or started elsewhere than start_keyframe:
+  /// while a track holds, a global search looks for it elsewhere (the known start's check, startRefuted;
+  /// the newest frames' check, recentCheck) and moves the track there on their evidence. false: the robot
+  /// only moves as it drives, from start_keyframe (a closed-loop repeat from its start, follow.launch): a
+  /// track moves only through the loss detection and the global search after it. Over 8-14 frames a
+  /// look-alike stretch of a route can be supported as well as a real kidnapping's place is (issue 31:
+  /// the closed loop's two stalls), and no margin the images give tells them apart; what does is knowing
+  /// that the robot drives.
+  bool detect_kidnapping = true;
   int min_init_frames = 5;            ///< frames before the first global answer
   /// Consecutive informative frames whose global answer is confident and advances 0..max_step keyframes
   /// per frame before tracking starts (GlobalConfirmation). Confident here: the confidence in the place

@@ -575,7 +575,7 @@ LocalizationResult Localizer::step(const uint8_t* query)
     return result;
   }
   SequenceMatch match = matchSequence(frame);
-  if (frame.checking_start)
+  if (frame.checking_start && params_.detect_kidnapping)
     checkStart(&frame, &match);
 
   // Confidence: how much cheaper per row the best path is than the best path ending elsewhere. The
@@ -814,8 +814,8 @@ void Localizer::trackStep(Frame* frame, SequenceMatch* match, bool confident)
 void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
 {
   const int rows = std::min(params_.relocalization_rows, params_.ring_buffer_rows);
-  if (rows <= 0 || params_.method != SequenceMethod::kOnlineDtw || frame->global || frame->checking_start ||
-      ring_.size() < rows || recent_count_ < rows)
+  if (rows <= 0 || !params_.detect_kidnapping || params_.method != SequenceMethod::kOnlineDtw || frame->global ||
+      frame->checking_start || ring_.size() < rows || recent_count_ < rows)
   {
     recent_checking_ = false;  // off, or the start's own check is on, or too few rows to weigh
     return;

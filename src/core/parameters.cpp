@@ -259,6 +259,10 @@ std::vector<ParameterSpec> makeTable()
                         "SeqSLAM baseline: step between velocities tried", FIELD(localizer.seqslam.velocity_step)));
   t.push_back(user(numberRow("start_keyframe", loc, -1, kMaxInt, "keyframe",
                              "Where the robot starts (-1: unknown, a global search first)", FIELD(localizer.start_keyframe))));
+  t.push_back(user(boolRow("detect_kidnapping", loc,
+                           "While tracking, look for the robot elsewhere: refute a known start, move the track on the "
+                           "newest frames (false: it only moves as it drives, e.g. a closed-loop repeat)",
+                           FIELD(localizer.detect_kidnapping))));
   t.push_back(numberRow("min_init_frames", loc, 1, 10000, "frames", "Frames before the first global answer",
                         FIELD(localizer.min_init_frames)));
   t.push_back(numberRow("init_confirm_frames", loc, 1, 10000, "frames",

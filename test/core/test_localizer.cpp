@@ -403,6 +403,65 @@ TEST(Localizer, AKnownStartTheImagesConfirmIsKeptAgainstALookAlike)
   }
 }
 
+TEST(Localizer, WithoutKidnappingOnlyALossMovesTheTrack)
+{
+  // detect_kidnapping false (follow.launch: a robot repeating its route from the taught start only moves as
+  // it drives): no check moves a track that holds to another place; a robot that is elsewhere all the same
+  // is found by the global search after the loss detection gave the track up. 200 keyframes, K = 20.
+  // Each run: the frame on which the answer first reaches the place the robot was at, and whether a lost
+  // frame came before it.
+  const auto map = syntheticMap(200);
+  struct Found
+  {
+    int frame = -1;
+    int lost_before = 0;      // lost frames before that one
+    int far_while_tracking = 0;  // frames answered while tracking far from the truth and from keyframe i
+  };
+  const auto run = [&](bool detect, int first_keyframe, int jump_frame, int jump_to) {
+    arl::LocalizerParams params;
+    params.ring_buffer_rows = 20;
+    params.detect_kidnapping = detect;
+    arl::Localizer localizer(map, params);
+    Found found;
+    for (int i = 0; i < 60 && found.frame < 0; ++i)
+    {
+      const int truth = i < jump_frame ? first_keyframe + i : jump_to + (i - jump_frame);
+      const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, truth));
+      if (result.status == LocalizationStatus::kLost)
+        ++found.lost_before;
+      else if (i >= jump_frame && result.keyframe == truth)
+        found.frame = i;
+      else if (std::abs(result.keyframe - truth) > 40 && std::abs(result.keyframe - i) > 40)
+        ++found.far_while_tracking;
+    }
+    return found;
+  };
+  // Told keyframe 0, started at 140.
+  const Found start_checked = run(true, 140, 0, 140), start_kept = run(false, 140, 0, 140);
+  // Carried from keyframe 39 to 120 after 40 frames.
+  const Found carried_checked = run(true, 0, 40, 120), carried_kept = run(false, 0, 40, 120);
+  std::printf("started at 140: found on frame %d / %d, after %d / %d lost frames; carried on frame 40: found on "
+              "frame %d / %d, after %d / %d lost frames (detect_kidnapping true / false)\n",
+              start_checked.frame, start_kept.frame, start_checked.lost_before, start_kept.lost_before,
+              carried_checked.frame, carried_kept.frame, carried_checked.lost_before, carried_kept.lost_before);
+  // With the checks the start is refuted as in AStartElsewhereIsRefutedByTheGlobalSearch: on the 8th frame
+  // (min_init_frames - 1 + init_confirm_frames - 1), never lost. Without them the track stays at the told
+  // start (its band: never near 140) until the loss detection gives it up (measured: 5 lost frames, found on
+  // frame 30).
+  const arl::LocalizerParams defaults;
+  EXPECT_EQ((defaults.min_init_frames - 1) + (defaults.init_confirm_frames - 1), start_checked.frame);
+  EXPECT_EQ(0, start_checked.lost_before);
+  EXPECT_GT(start_kept.frame, start_checked.frame);
+  EXPECT_GT(start_kept.lost_before, 0);
+  EXPECT_EQ(0, start_kept.far_while_tracking);
+  // Carried: found either way (measured on frame 54 both: here the loss detection is as quick as the check
+  // of the newest frames), without the checks only after the track was lost.
+  EXPECT_GT(carried_checked.frame, 40);
+  EXPECT_GT(carried_kept.frame, 40);
+  EXPECT_GT(carried_kept.lost_before, 0);
+  EXPECT_EQ(0, carried_kept.far_while_tracking);
+}
+
 TEST(Localizer, TheStartKeyframeIsNoStepOfTheCruiseSpeed)
 {
   // From a known start the first frame is answered at the start keyframe itself (not one ahead), and that

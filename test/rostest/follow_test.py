@@ -278,6 +278,11 @@ class FollowTest(unittest.TestCase):
         finally:
             rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
 
+    def test_d_the_closed_loop_localizer_does_not_look_for_a_kidnapped_robot(self):
+        # follow.launch: the robot repeats its route from the taught start and only moves as it drives, so
+        # the localizer's checks for a robot carried elsewhere are off (detect_kidnapping false, a bool).
+        self.assertIs(rospy.get_param('/follow/localizer/detect_kidnapping'), False)
+
 
 if __name__ == '__main__':
     rostest.rosrun('along_route_localization', 'follow', FollowTest)
