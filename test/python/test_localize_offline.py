@@ -429,7 +429,7 @@ class LocalizeOfflineTest(unittest.TestCase):
             return [line.split(' = ')[0].strip() for line in stdout.splitlines()
                     if line.startswith('    ') and not line.startswith('        ') and ' = ' in line]
         user = listed(result.stdout)
-        self.assertEqual(len(user), 19)  # 6 of the preprocessor, 13 of the localizer (test_core, ParameterTiers)
+        self.assertEqual(len(user), 20)  # 6 of the preprocessor, 14 of the localizer (test_core, ParameterTiers)
         for name in ('max_step', 'max_shift_px', 'contrast_window', 'output_width', 'start_keyframe'):
             self.assertIn(name, user)
         for name in ('min_texture_ratio', 'seqslam_sequence_length', 'parallel', 'output_gain'):
@@ -443,7 +443,7 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertNotIn('not shown', result.stdout)
         every = listed(result.stdout)
         self.assertEqual(len(every), len(set(every)))
-        self.assertEqual(len(every), 59)
+        self.assertEqual(len(every), 60)
         self.assertTrue(set(user) < set(every))
         for name in ('max_step', 'min_texture_ratio', 'output_width', 'seqslam_sequence_length', 'parallel'):
             self.assertIn(name, every)
