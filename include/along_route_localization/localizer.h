@@ -185,6 +185,38 @@ struct LocalizerParams
   std::string validate() const;
 };
 
+/// What the robot's own motion sensing (wheel odometry, or the velocity it was commanded) says it did since
+/// the previous frame (the localizer nodelet's optional motion topic).
+enum class RobotMotion
+{
+  kUnknown,    ///< nothing said: the images alone decide
+  kStoodStill, ///< the robot did not move: a featureless frame is then no frame at all (Localizer::process)
+  kMoved       ///< the robot moved: the images decide, as with kUnknown
+};
+
+/// From the robot's velocity samples (odometry or commands), what it did between two frames: kMoved when any
+/// sample since the previous frame, or the newest before it, had a forward speed above kStillSpeedMps;
+/// kStoodStill when none did; kUnknown before the first sample, when the newest is more than max_age_s
+/// older than the frame (the topic went quiet), or from the future (time went back: forgotten).
+class StandstillDetector
+{
+public:
+  static constexpr double kStillSpeedMps = 0.01;  ///< odometry noise of a standing base stays below 1 cm/s
+
+  explicit StandstillDetector(double max_age_s = 1.0) : max_age_s_(max_age_s) {}
+  /// A velocity sample: forward speed (m/s, either sign) at stamp_s (seconds, the frames' clock).
+  void velocity(double linear_mps, double stamp_s);
+  /// What the robot did since the previous call; starts the next interval. frame_s: the frame's stamp.
+  RobotMotion sinceLastFrame(double frame_s);
+
+private:
+  double max_age_s_;
+  bool have_sample_ = false;
+  bool moved_since_frame_ = false;
+  double latest_speed_mps_ = 0.0;
+  double latest_s_ = 0.0;
+};
+
 /// What the localizer did with the frames missed before a frame (FrameClock; LocalizationResult::gap).
 enum class FrameGap
 {
@@ -269,7 +301,13 @@ public:
   /// before the last one (a looping bag) starts over (reset), a gap in the stamps is frames missed
   /// (skipFrames, when fill_frame_gaps is set, unless the frame shows the view of the last one before the
   /// gap: the robot stood still). The result says which.
-  LocalizationResult process(const cv::Mat& preprocessed, int64_t stamp_ns = 0);
+  /// motion: what the robot's odometry says it did since the previous frame. A featureless frame taken while
+  /// the robot stood still (kStoodStill; e.g. stopped behind a vehicle or a person in front of the camera)
+  /// changes nothing: no row, no step of any dead reckoning, the previous answer again. Without it the
+  /// sequence goes on through featureless rows at the speed the robot had, and a robot stopped behind an
+  /// occluder would be left behind by its own track.
+  LocalizationResult process(const cv::Mat& preprocessed, int64_t stamp_ns = 0,
+                             RobotMotion motion = RobotMotion::kUnknown);
 
   /// Tells the localizer that the camera missed `count` frames since the last one (a dropout, frames
   /// dropped on the way; FrameClock measures it from the stamps). Each becomes a row without evidence, as
@@ -520,6 +558,7 @@ private:
   FrameClock clock_;
   uint64_t frames_ = 0;
   std::vector<int> last_path_;
+  LocalizationResult last_result_;         // the last frame's (answered again for a frame that changes nothing)
   cv::Mat entered_query_;                  // the last query that entered the ring buffer (empty: none)
   /// The last relocalization_rows queries, oldest first from `next` (a ring), with what computeRow needs.
   struct RecentQuery

@@ -468,7 +468,35 @@ void Localizer::computeRow(const uint8_t* query, float query_energy, bool query_
   }
 }
 
-LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp_ns)
+void StandstillDetector::velocity(double linear_mps, double stamp_s)
+{
+  if (!std::isfinite(linear_mps) || !std::isfinite(stamp_s))
+    return;
+  const bool moving = std::fabs(linear_mps) > kStillSpeedMps;
+  if (have_sample_ && stamp_s < latest_s_)
+    moved_since_frame_ = false;  // time went back: the samples before are of another drive
+  moved_since_frame_ = moved_since_frame_ || moving;
+  latest_speed_mps_ = linear_mps;
+  latest_s_ = stamp_s;
+  have_sample_ = true;
+}
+
+RobotMotion StandstillDetector::sinceLastFrame(double frame_s)
+{
+  const bool moved = moved_since_frame_ || std::fabs(latest_speed_mps_) > kStillSpeedMps;
+  moved_since_frame_ = false;
+  if (!have_sample_ || !std::isfinite(frame_s) || frame_s - latest_s_ > max_age_s_)
+    return RobotMotion::kUnknown;
+  if (latest_s_ - frame_s > max_age_s_)
+  {
+    have_sample_ = false;  // samples from the future: time went back (a looping bag)
+    latest_speed_mps_ = 0.0;
+    return RobotMotion::kUnknown;
+  }
+  return moved ? RobotMotion::kMoved : RobotMotion::kStoodStill;
+}
+
+LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp_ns, RobotMotion motion)
 {
   if (preprocessed.type() != CV_8UC1 || preprocessed.cols != map_->width() || preprocessed.rows != map_->height())
     throw std::invalid_argument("Localizer: expected a preprocessed mono8 image of " + std::to_string(map_->width()) +
@@ -486,6 +514,21 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   {
     reset();
     clock_.update(stamp_ns);  // reset() forgot the last stamp: this one is it
+  }
+  // A featureless frame taken where the last one was (the robot's odometry says it stood still) tells
+  // nothing and nothing moved: the sequence, the checks and the dead reckoning stay as they are, and the
+  // answer is the last one (after a gap or a restart the frame goes through as any other).
+  if (motion == RobotMotion::kStoodStill && !tick.went_back && tick.missed == 0 && frames_ > 0 &&
+      textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) < map_stats_.min_texture_energy)
+  {
+    ++frames_;
+    LocalizationResult result = last_result_;
+    result.query_informative = false;
+    result.shift_px = result.homing_angle_rad = 0.0;  // a featureless query reports no shift
+    result.time_went_back = false;
+    result.missed_frames = 0;
+    result.gap = FrameGap::kNone;
+    return result;
   }
   // A frame after a gap that shows the view of the last frame before it, with texture enough to tell: the
   // robot stood still through the gap (a dark view says nothing: the gap is filled in). Not inside a run of
@@ -510,6 +553,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   result.time_went_back = tick.went_back;
   result.missed_frames = tick.missed;
   result.gap = gap;
+  last_result_ = result;
   return result;
 }
 

@@ -3,11 +3,15 @@
 // Subscribes: image_preprocessed (mono8, queue 1: the newest frame wins)
 //             <namespace of image_preprocessed>/preprocessing_params (latched, from the preprocessor):
 //             a map made with other parameters is refused
+//             motion (optional, with ~motion_type twist or odometry: geometry_msgs/Twist, e.g. the robot's
+//             cmd_vel, or nav_msgs/Odometry): whether the robot stood still between two frames
+//             (StandstillDetector); a featureless frame taken while it stood changes nothing (Localizer::process)
 // Publishes:  localization (along_route_localization/Localization, header copied from the image)
 //             localization_debug_image (bgr8, only while subscribed: the ring buffer with the path, debug_image.h)
 //             /diagnostics (processing time per frame, rate, status, frames dropped and why)
 // Services:   ~load_map (along_route_localization/LoadMap)
-// Parameters: ~map (absolute path, loaded at start), ~debug_image_scale (8), ~min_rate / ~max_rate (Hz,
+// Parameters: ~map (absolute path, loaded at start), ~motion_type (none | twist | odometry; none: no motion
+//             topic), ~debug_image_scale (8), ~min_rate / ~max_rate (Hz,
 //             expected input rate for diagnostics); cfg/Localizer.cfg (dynamic, applied between
 //             frames); any other localizer parameter of the parameter table (static, e.g. ~cost_function)
 // Test hook: ~report_input_buffer (false): publishes on ~input_buffer (std_msgs/String) the address of
@@ -28,7 +32,9 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <diagnostic_updater/update_functions.h>
 #include <dynamic_reconfigure/server.h>
+#include <geometry_msgs/Twist.h>
 #include <image_transport/image_transport.h>
+#include <nav_msgs/Odometry.h>
 #include <nodelet/nodelet.h>
 #include <sensor_msgs/image_encodings.h>
 #include <std_msgs/String.h>
@@ -53,6 +59,8 @@ private:
   void onInit() override;
   void imageCb(const sensor_msgs::ImageConstPtr& msg);
   void paramsCb(const std_msgs::StringConstPtr& msg);
+  void motionTwistCb(const geometry_msgs::TwistConstPtr& msg);
+  void motionOdomCb(const nav_msgs::OdometryConstPtr& msg);
   void configCb(LocalizerConfig& config, uint32_t level);
   bool loadMapCb(LoadMap::Request& req, LoadMap::Response& res);
   bool loadMap(const std::string& path, std::string* message);
@@ -82,6 +90,7 @@ private:
   image_transport::Subscriber image_sub_;
   image_transport::Publisher debug_pub_;
   ros::Subscriber params_sub_;
+  ros::Subscriber motion_sub_;  // only with ~motion_type twist or odometry
   ros::Publisher localization_pub_;
   ros::Publisher input_buffer_pub_;  // the zero-copy test's hook; only with ~report_input_buffer
   ros::ServiceServer load_map_srv_;
@@ -113,6 +122,7 @@ private:
   bool drive_localized_ = false;
   bool resumed_mid_drive_ = false;  // restarted so, and no frame processed since
   LocalizationResult last_result_;
+  StandstillDetector standstill_;  // the motion topic's samples; used only when motion_sub_ is set
   uint64_t frames_ = 0, frames_in_period_ = 0, resets_ = 0;
   FrameGapCounts gaps_;
   DroppedFrames dropped_;
@@ -243,8 +253,8 @@ void LocalizerNodelet::warnAboutUnreadParameters(const ros::NodeHandle& private_
   std::set<std::string> read = configParameterNames<LocalizerConfig>();
   for (const std::string& name : localizerParameterNames())
     read.insert(name);
-  const std::set<std::string> own = { "map",           "debug_image_scale", "min_rate", "max_rate",
-                                      "image_transport", "diagnostic_period", "report_input_buffer" };
+  const std::set<std::string> own = { "map",           "debug_image_scale", "min_rate",           "max_rate",
+                                      "image_transport", "diagnostic_period", "report_input_buffer", "motion_type" };
   read.insert(own.begin(), own.end());
   const std::vector<std::string> preprocessing = preprocessingParameterNames();
   for (const std::string& name : unreadParameters(private_nh, read))
@@ -325,9 +335,34 @@ void LocalizerNodelet::onInit()
   params_sub_ = nh.subscribe(params_topic, 1, &LocalizerNodelet::paramsCb, this);
   const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh);
   image_sub_ = it_->subscribe("image_preprocessed", 1, &LocalizerNodelet::imageCb, this, hints);
+  // The same single-threaded queue as the images: the detector needs no lock.
+  std::string motion_type = "none";
+  private_nh.param("motion_type", motion_type, motion_type);
+  if (motion_type == "twist")
+    motion_sub_ = nh.subscribe("motion", 100, &LocalizerNodelet::motionTwistCb, this);
+  else if (motion_type == "odometry")
+    motion_sub_ = nh.subscribe("motion", 100, &LocalizerNodelet::motionOdomCb, this);
+  else if (motion_type != "none")
+    NODELET_ERROR("~motion_type must be none, twist or odometry ('%s'); using none: the images alone tell "
+                  "whether the robot stood still",
+                  motion_type.c_str());
+  if (motion_sub_)
+    NODELET_INFO("Whether the robot stood still between frames: from %s (%s)", motion_sub_.getTopic().c_str(),
+                 motion_type.c_str());
   NODELET_INFO("Localizing %s against %s; preprocessing parameters checked against %s",
                nh.resolveName("image_preprocessed").c_str(), map_ ? map_path_.c_str() : "(no map yet)",
                params_topic.c_str());
+}
+
+void LocalizerNodelet::motionTwistCb(const geometry_msgs::TwistConstPtr& msg)
+{
+  standstill_.velocity(msg->linear.x, ros::Time::now().toSec());  // a Twist has no stamp: when it came
+}
+
+void LocalizerNodelet::motionOdomCb(const nav_msgs::OdometryConstPtr& msg)
+{
+  const ros::Time stamp = msg->header.stamp.isZero() ? ros::Time::now() : msg->header.stamp;
+  standstill_.velocity(msg->twist.twist.linear.x, stamp.toSec());
 }
 
 void LocalizerNodelet::configCb(LocalizerConfig& config, uint32_t /*level*/)
@@ -595,7 +630,9 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   try
   {
     // The stamp tells the core when time went back (it starts over) and when frames were missed.
-    result = localizer_->process(input->image, static_cast<int64_t>(msg->header.stamp.toNSec()));
+    const RobotMotion motion =
+        motion_sub_ ? standstill_.sinceLastFrame(msg->header.stamp.toSec()) : RobotMotion::kUnknown;
+    result = localizer_->process(input->image, static_cast<int64_t>(msg->header.stamp.toNSec()), motion);
   }
   catch (const std::exception& e)
   {

@@ -2308,3 +2308,72 @@ TEST(LocalizerStates, MissedFramesWhileLostMoveTheDeadReckoningOn)
   ASSERT_EQ(LocalizationStatus::kLost, r.status);
   EXPECT_NEAR(before + 6, r.keyframe, 1) << "6 frames at about one keyframe per frame";
 }
+
+TEST(Localizer, AFeaturelessFrameWhileTheRobotStoodStillChangesNothing)
+{
+  // As above (AnAnswerThatRanAheadInTheDark...): one keyframe per frame over keyframes 0..60, then 20
+  // featureless frames at keyframe 60, then keyframes 61, 62, ... This time the robot's odometry says it
+  // stood still through the dark (a vehicle in front of the camera): those frames change nothing, so
+  // each answers keyframe 60 again, and from the first frame after the dark every answer is right (the
+  // track did not run on to 71).
+  const auto map = syntheticMap(200);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  arl::LocalizationResult before;
+  for (int i = 0; i <= 60; ++i)
+  {
+    before = localizer.process(keyframeCopy(*map, i), 0, arl::RobotMotion::kMoved);
+    ASSERT_EQ(i, before.keyframe);
+  }
+  const cv::Mat blind(map->height(), map->width(), CV_8UC1, cv::Scalar(128));
+  for (int j = 0; j < 20; ++j)
+  {
+    const arl::LocalizationResult r = localizer.process(blind, 0, arl::RobotMotion::kStoodStill);
+    EXPECT_EQ(60, r.keyframe) << "dark frame " << j;
+    EXPECT_EQ(before.status, r.status);
+    EXPECT_EQ(before.confidence, r.confidence) << "the same evidence as before the dark";
+    EXPECT_FALSE(r.query_informative);
+    EXPECT_EQ(0.0, r.shift_px);
+  }
+  EXPECT_EQ(81u, localizer.frameCount()) << "the dark frames were counted";
+  for (int i = 61; i <= 100; ++i)
+  {
+    const arl::LocalizationResult r = localizer.process(keyframeCopy(*map, i), 0, arl::RobotMotion::kMoved);
+    EXPECT_EQ(LocalizationStatus::kTracking, r.status) << "frame " << i;
+    EXPECT_LE(std::abs(r.keyframe - i), 1) << "frame " << i;
+  }
+  // A textured frame while the robot stands goes through as before (a repeated view): only a frame that
+  // shows nothing is left out. And kMoved leaves featureless frames to the sequence, which runs on.
+  const int k = localizer.process(keyframeCopy(*map, 100), 0, arl::RobotMotion::kStoodStill).keyframe;
+  EXPECT_LE(std::abs(k - 100), 1);
+  int last = k;
+  for (int j = 0; j < 10; ++j)
+    last = localizer.process(blind, 0, arl::RobotMotion::kMoved).keyframe;
+  EXPECT_GT(last, 100 + 1) << "a moving robot's featureless frames are rows of the sequence";
+}
+
+TEST(StandstillDetector, SaysWhatTheRobotDidBetweenTwoFrames)
+{
+  arl::StandstillDetector detector(1.0);
+  EXPECT_EQ(arl::RobotMotion::kUnknown, detector.sinceLastFrame(10.0)) << "no sample yet";
+  detector.velocity(0.5, 10.1);
+  detector.velocity(0.0, 10.2);
+  EXPECT_EQ(arl::RobotMotion::kMoved, detector.sinceLastFrame(10.25)) << "it moved, then stopped, in between";
+  detector.velocity(0.0, 10.3);
+  EXPECT_EQ(arl::RobotMotion::kStoodStill, detector.sinceLastFrame(10.5));
+  // No sample since the last frame: the newest (0 m/s at 10.3) still holds ...
+  EXPECT_EQ(arl::RobotMotion::kStoodStill, detector.sinceLastFrame(11.25));
+  // ... until it is more than max_age older than the frame.
+  EXPECT_EQ(arl::RobotMotion::kUnknown, detector.sinceLastFrame(11.31));
+  detector.velocity(-0.2, 12.0);  // reversing is moving too
+  EXPECT_EQ(arl::RobotMotion::kMoved, detector.sinceLastFrame(12.1));
+  EXPECT_EQ(arl::RobotMotion::kMoved, detector.sinceLastFrame(12.2)) << "the newest sample says it still moves";
+  detector.velocity(0.5 * arl::StandstillDetector::kStillSpeedMps, 12.3);  // odometry noise of a standing base
+  EXPECT_EQ(arl::RobotMotion::kStoodStill, detector.sinceLastFrame(12.4));
+  // Time went back (a looping bag): samples from the future are forgotten.
+  EXPECT_EQ(arl::RobotMotion::kUnknown, detector.sinceLastFrame(5.0));
+  EXPECT_EQ(arl::RobotMotion::kUnknown, detector.sinceLastFrame(5.1));
+  detector.velocity(0.0, 5.2);
+  EXPECT_EQ(arl::RobotMotion::kStoodStill, detector.sinceLastFrame(5.3));
+  detector.velocity(std::nan(""), 5.35);  // ignored
+  EXPECT_EQ(arl::RobotMotion::kStoodStill, detector.sinceLastFrame(5.4));
+}
