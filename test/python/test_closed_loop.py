@@ -5,6 +5,7 @@ import math
 import os
 import sys
 import tempfile
+import argparse
 import unittest
 
 import numpy as np
@@ -162,6 +163,31 @@ class FiguresTest(unittest.TestCase):
         self.assertEqual(closed_loop.parse_args(["--offsets=-1:-10,1:-10"]).offsets, [(-1.0, -10.0), (1.0, -10.0)])
         with self.assertRaises(Exception):
             closed_loop.parse_offset("1")
+
+    def test_occlusion(self):
+        self.assertEqual(closed_loop.parse_occlusion("40:10"), (40.0, 10.0))
+        self.assertEqual(closed_loop.parse_args(["--occlusion", "0:2.5"]).occlusion, (0.0, 2.5))
+        self.assertIsNone(closed_loop.parse_args([]).occlusion)
+        for bad in ("40", "40:0", "-1:5", "a:b"):
+            with self.assertRaises(argparse.ArgumentTypeError, msg=bad):
+                closed_loop.parse_occlusion(bad)
+
+
+class SimulatorOcclusionTest(unittest.TestCase):
+    """The lens is covered in the repeat, from occlusion_start_s for occlusion_duration_s, and never in the teach."""
+
+    def occluded(self, mode, elapsed, start=40.0, duration=10.0):
+        sim = simulator.Simulator.__new__(simulator.Simulator)  # occluded() reads only the parameters
+        sim.p = dict(simulator.PARAMS, mode=mode, occlusion_start_s=start, occlusion_duration_s=duration)
+        return sim.occluded(elapsed)
+
+    def test_window(self):
+        self.assertFalse(self.occluded("repeat", 39.99))
+        self.assertTrue(self.occluded("repeat", 40.0))
+        self.assertTrue(self.occluded("repeat", 49.99))
+        self.assertFalse(self.occluded("repeat", 50.0))
+        self.assertFalse(self.occluded("teach", 45.0))
+        self.assertFalse(self.occluded("repeat", 45.0, duration=0.0))
 
 
 if __name__ == "__main__":
