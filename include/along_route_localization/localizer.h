@@ -413,6 +413,9 @@ private:
   /// The query shows the view of the last one that entered the ring buffer (stationary_ratio): the
   /// camera stood still. False for nullptr.
   bool repeatsLastView(const uint8_t* query) const;
+  /// Whether the query has texture enough to tell anything (textureEnergy >= min_texture_energy); not
+  /// featureless. beginFrame applies the same rule to the energy it keeps for the row.
+  bool textured(const uint8_t* query) const;
   /// Status after construction or reset(): tracking from start_keyframe, or initializing.
   void start();
   /// While a known start (start_keyframe) is checked (the first K new views): the global search over the

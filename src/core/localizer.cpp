@@ -518,8 +518,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   // A featureless frame taken where the last one was (the robot's odometry says it stood still) tells
   // nothing and nothing moved: the sequence, the checks and the dead reckoning stay as they are, and the
   // answer is the last one (after a gap or a restart the frame goes through as any other).
-  if (motion == RobotMotion::kStoodStill && !tick.went_back && tick.missed == 0 && frames_ > 0 &&
-      textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) < map_stats_.min_texture_energy)
+  if (motion == RobotMotion::kStoodStill && !tick.went_back && tick.missed == 0 && frames_ > 0 && !textured(query))
   {
     ++frames_;
     LocalizationResult result = last_result_;
@@ -535,9 +534,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   // identical keyframes (a station where the teach robot stood too): there the robot goes on through the
   // run at the speed it came, as frame by frame (motionPrior, keyframeThroughRun).
   const bool in_run = last_match_ >= 0 && inRunOfCopies(last_match_);
-  const bool same_view = tick.missed > 0 && !in_run && repeatsLastView(query) &&
-                         textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) >=
-                             map_stats_.min_texture_energy;
+  const bool same_view = tick.missed > 0 && !in_run && repeatsLastView(query) && textured(query);
   // (FrameClock reports no missed frames when time went back.)
   FrameGap gap = FrameGap::kNone;
   if (tick.missed > 0)
@@ -555,6 +552,11 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   result.gap = gap;
   last_result_ = result;
   return result;
+}
+
+bool Localizer::textured(const uint8_t* query) const
+{
+  return textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) >= map_stats_.min_texture_energy;
 }
 
 bool Localizer::repeatsLastView(const uint8_t* query) const
@@ -667,7 +669,7 @@ Localizer::Frame Localizer::beginFrame(const uint8_t* query)
   Frame frame;
   frame.query = query;
   frame.energy = query ? textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) : 0.0f;
-  frame.informative = query && frame.energy >= map_stats_.min_texture_energy;
+  frame.informative = query && frame.energy >= map_stats_.min_texture_energy;  // textured(), energy kept
   // The query repeats the previous row's view (the camera stood still): flagged for column centering.
   frame.repeated = repeatsLastView(query);
   frame.tracking = last_match_ >= 0 && (state_ == State::kTracking || state_ == State::kCoasting);
