@@ -49,6 +49,9 @@ struct RouteFollowerParams
   int slow_after_frames = 3;            ///< consecutive low-confidence localizations before slowing
   int stop_after_frames = 8;            ///< consecutive low-confidence localizations before stopping
   double slow_factor = 0.5;             ///< fraction of the speed while slowing
+  /// After a stop for low confidence or a loss, creep on at most this far (m; 0 = stop at once): a robot that
+  /// stands brings the localizer no new view, so it could never find the route again.
+  double recovery_distance_m = 3.0;
   double watchdog_timeout_s = 1.0;      ///< stop when no localization came for this long, s
   double max_linear_accel = 0.5;        ///< bound of the change of the forward speed, m/s^2
   double max_angular_accel = 1.0;       ///< bound of the change of the turn rate, rad/s^2
@@ -65,6 +68,7 @@ struct FollowerInput
   int keyframe = -1;
   double confidence = 0.0;
   double homing_angle_rad = 0.0;  ///< REP-103: positive = turn left to get back onto the route
+  bool informative = true;        ///< false for a featureless camera frame (dark, blank, covered)
 };
 
 /// A velocity command (geometry_msgs/Twist linear.x, angular.z).
@@ -133,11 +137,20 @@ public:
   bool driving() const;
   int lowConfidenceFrames() const { return low_frames_; }
   double filteredHomingAngle() const { return homing_filtered_rad_; }
+  /// True while the target is a recovery creep; the distance crept since the last confident localization.
+  bool creeping() const { return creeping_; }
+  double creptDistance() const { return crept_m_; }
   size_t keyframes() const { return motion_.size(); }
   int lastKeyframe() const { return have_input_ ? last_input_.keyframe : -1; }
 
 private:
   void computeTarget(double now_s);
+  /// The target instead of a stop for `why`: a creep while the recovery distance lasts, else a stop.
+  void creepOrStop(const std::string& why);
+  /// Where the creep has brought the robot: the anchor keyframe advanced by the distance crept, keyframe by
+  /// keyframe with the taught distances.
+  size_t creepKeyframe() const;
+  void setTarget(const TaughtMotion& taught, double homing_rps);
 
   std::vector<TaughtMotion> motion_;
   RouteFollowerParams params_;
@@ -150,6 +163,12 @@ private:
   double homing_filtered_rad_ = 0.0;
   int low_frames_ = 0;
   bool confident_since_start_ = false;  // a confident localization since start() or since the track began
+  int last_on_route_keyframe_ = -1;     // the keyframe of the last tracking (or end of route) localization
+  bool creeping_ = false;               // the last target was a recovery creep
+  bool creep_begun_ = false;            // a creep has begun (and its anchor is set) since the last drive on the track
+  int creep_anchor_ = -1;               // the keyframe the creep started from
+  double anchor_crept_m_ = 0.0;         // crept_m_ when it started from there
+  double crept_m_ = 0.0;                // commanded distance crept since the last confident localization
 
   FollowerCommand target_, command_;
   double scale_ = 0.0;

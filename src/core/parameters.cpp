@@ -321,9 +321,13 @@ std::vector<ParameterSpec> makeTable()
   t.push_back(numberRow("stop_after_frames", fol, 1, 1000, "frames",
                         "Low-confidence localizations in a row before stopping (at least slow_after_frames)",
                         FIELD(follower.stop_after_frames)));
-  t.push_back(numberRow("slow_factor", fol, 0, 1, "", "Fraction of the speed while slowing",
+  t.push_back(numberRow("slow_factor", fol, 0, 1, "", "Fraction of the speed while slowing (and creeping)",
                         FIELD(follower.slow_factor)));
   t.push_back(user(numberRow("watchdog_timeout", fol, 0.01, 60, "s", "Stop when no localization came for this long",
+  t.push_back(user(numberRow("recovery_distance", fol, 0, 1000, "m",
+                             "After a stop for low confidence or a loss, creep on (slow_factor, no homing) at most "
+                             "this far to bring new views (0: stop at once)",
+                             FIELD(follower.recovery_distance_m))));
                              FIELD(follower.watchdog_timeout_s))));
   t.push_back(user(numberRow("max_linear_accel", fol, 0.001, 100, "m/s^2", "Bound of the change of the forward speed",
                              FIELD(follower.max_linear_accel))));

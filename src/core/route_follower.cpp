@@ -135,6 +135,8 @@ bool RouteFollower::start(double now_s, std::string* message)
   low_frames_ = 0;
   homing_filtered_rad_ = 0.0;
   confident_since_start_ = false;
+  crept_m_ = 0.0;
+  creeping_ = creep_begun_ = false;
   state_ = State::kFollowing;
   *message = before == State::kPaused ? "resumed following" : "started following";
   return true;
@@ -196,9 +198,11 @@ void RouteFollower::localization(const FollowerInput& input, double now_s)
     {
       low_frames_ = 0;
       confident_since_start_ = true;
+      crept_m_ = 0.0;  // found again: a later stop may creep again
     }
     else
       ++low_frames_;
+    last_on_route_keyframe_ = input.keyframe;
   }
   last_input_ = input;
   last_input_s_ = now_s;
@@ -209,6 +213,7 @@ void RouteFollower::localization(const FollowerInput& input, double now_s)
 
 void RouteFollower::computeTarget(double now_s)
 {
+  creeping_ = false;
   target_ = FollowerCommand();
   scale_ = 0.0;
   switch (state_)
@@ -248,7 +253,7 @@ void RouteFollower::computeTarget(double now_s)
   }
   if (last_input_.status == LocalizationStatus::kLost)
   {
-    reason_ = "stopped: the localization is lost";
+    creepOrStop("the localization is lost");
     return;
   }
   if (last_input_.status == LocalizationStatus::kInitializing)
@@ -271,8 +276,8 @@ void RouteFollower::computeTarget(double now_s)
   }
   else if (low_frames_ >= params_.stop_after_frames)
   {
-    reason_ = formatted("stopped: confidence below %.2f for %.0f localizations in a row", params_.min_confidence,
-                        low_frames_);
+    creepOrStop(formatted("confidence below %.2f for %.0f localizations in a row", params_.min_confidence,
+                          low_frames_));
     return;
   }
   else if (low_frames_ >= params_.slow_after_frames)
@@ -286,11 +291,62 @@ void RouteFollower::computeTarget(double now_s)
     scale_ = 1.0;
     reason_ = "following";
   }
-  const TaughtMotion& taught = motion_[static_cast<size_t>(last_input_.keyframe)];
   const double homing_rps = std::max(-params_.max_homing_turn_rps,
                                      std::min(params_.max_homing_turn_rps, params_.homing_gain * homing_filtered_rad_));
+  setTarget(motion_[static_cast<size_t>(last_input_.keyframe)], homing_rps);
+  creep_begun_ = false;  // driving on the track again: a later creep starts from where it is then
+}
+
+void RouteFollower::setTarget(const TaughtMotion& taught, double homing_rps)
+{
   target_.linear_mps = scale_ * params_.speed_factor * taught.linear_mps;
   target_.angular_rps = scale_ * (params_.speed_factor * taught.angular_rps + homing_rps);
+}
+
+size_t RouteFollower::creepKeyframe() const
+{
+  size_t k = static_cast<size_t>(creep_anchor_);
+  double left_m = crept_m_ - anchor_crept_m_;
+  while (k + 1 < motion_.size() && motion_[k + 1].distance_m > 0.0 && left_m >= motion_[k + 1].distance_m)
+    left_m -= motion_[++k].distance_m;
+  return k;
+}
+
+void RouteFollower::creepOrStop(const std::string& why)
+{
+  // The creep follows the taught motion on from the last keyframe the track held, reckoned by the distance
+  // crept, without the homing term (the angle of an unconfident or lost match is not trusted): at slow_factor
+  // it brings the localizer new views within a bounded distance, and the first confident answer ends it.
+  if (!creep_begun_)
+  {
+    creep_anchor_ = last_on_route_keyframe_;
+    anchor_crept_m_ = crept_m_;
+  }
+  const bool can_creep = creep_anchor_ >= 0 && creep_anchor_ < static_cast<int>(motion_.size()) &&
+                         crept_m_ < params_.recovery_distance_m && creepKeyframe() + 1 < motion_.size();
+  if (!can_creep)
+  {
+    reason_ = "stopped: " + why;
+    if (crept_m_ > 0.0)
+      reason_ += formatted(" (crept %.2f m of recovery_distance %.2f m without a confident localization)", crept_m_,
+                           params_.recovery_distance_m);
+    return;
+  }
+  if (!last_input_.informative)
+  {
+    // A featureless view (covered, dark): moving brings no view to localize on, and whatever covers the
+    // camera may stand in front of the robot. Wait, keeping the distance left for when the view comes back.
+    creep_begun_ = true;  // the same creep goes on from the same anchor once the view is back
+    reason_ = "stopped: " + why + "; the view is featureless: the creep waits for one with texture";
+    return;
+  }
+  creeping_ = creep_begun_ = true;
+  scale_ = params_.slow_factor;
+  const size_t k = creepKeyframe();
+  setTarget(motion_[k], 0.0);
+  reason_ = "creeping: " + why +
+            formatted("; %.2f of recovery_distance %.2f m, to bring new views (reckoned keyframe %.0f)", crept_m_,
+                      params_.recovery_distance_m, static_cast<double>(k));
 }
 
 FollowerCommand RouteFollower::command(double now_s)
@@ -301,6 +357,8 @@ FollowerCommand RouteFollower::command(double now_s)
   const double dt = have_command_time_ ? std::max(0.0, now_s - command_s_) : 0.0;
   command_.linear_mps = approach(command_.linear_mps, target_.linear_mps, params_.max_linear_accel * dt);
   command_.angular_rps = approach(command_.angular_rps, target_.angular_rps, params_.max_angular_accel * dt);
+  if (creeping_)
+    crept_m_ += std::fabs(command_.linear_mps) * dt;
   command_s_ = now_s;
   have_command_time_ = true;
   return command_;

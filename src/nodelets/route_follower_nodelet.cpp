@@ -229,6 +229,7 @@ void RouteFollowerNodelet::localizationCb(const LocalizationConstPtr& msg)
   input.keyframe = msg->keyframe;
   input.confidence = msg->confidence;
   input.homing_angle_rad = msg->homing_angle;
+  input.informative = msg->query_informative;
   const RouteFollower::State before = follower_->state();
   follower_->localization(input, ros::Time::now().toSec());
   if (before != follower_->state() && follower_->state() == RouteFollower::State::kFinished)

@@ -277,6 +277,120 @@ TEST(RouteFollower, StopsWhileLostOrInitializingOrOnAKeyframeOutsideTheMap)
   EXPECT_CLOSE(0.6, follower.command(0.7).linear_mps);
 }
 
+TEST(RouteFollower, AfterALossOrALowConfidenceStopItCreepsABoundedDistanceAlongTheTaughtMotionThenStops)
+{
+  // Keyframes 0.5 m apart, the taught turn rate 0.25 rad/s per keyframe index; creeping at half speed, a
+  // command every 0.125 s moves the robot 0.5 m/s x 0.125 s = 0.0625 m (all exact in binary).
+  std::vector<arl::TaughtMotion> taught;
+  for (int k = 0; k < 5; ++k)
+    taught.push_back(motion(1.0, 0.25 * k, k == 0 ? 0.0 : 0.5));
+  arl::RouteFollowerParams params = immediate();
+  params.min_confidence = 0.5;
+  params.slow_factor = 0.5;
+  params.recovery_distance_m = 1.0;
+  arl::RouteFollower follower = started(taught, params);
+  follower.localization(tracking(1, 0.9, 0.1), 0.0);
+  const arl::FollowerCommand tracked = follower.command(0.125);
+  EXPECT_CLOSE(1.0, tracked.linear_mps);
+  EXPECT_CLOSE(0.25 + 0.3, tracked.angular_rps);  // taught + 3 x 0.1 homing
+  // 16 creeping commands from keyframe 1 (the last one tracked), without the homing term: the first 8
+  // before the robot has crept the 0.5 m to keyframe 2, the next 8 after; then 1 m is crept and it stops.
+  for (int n = 1; n <= 17; ++n)
+  {
+    const double t = 0.125 * (n + 1);
+    follower.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), t - 0.01);
+    const arl::FollowerCommand command = follower.command(t);
+    const double expected_linear = n <= 16 ? 0.5 : 0.0;
+    const double expected_angular = n <= 8 ? 0.5 * 0.25 : (n <= 16 ? 0.5 * 0.5 : 0.0);
+    EXPECT_CLOSE(expected_linear, command.linear_mps) << "command " << n;
+    EXPECT_CLOSE(expected_angular, command.angular_rps) << "command " << n;
+    EXPECT_EQ(n <= 16, follower.creeping()) << "command " << n << ": " << follower.reason();
+  }
+  EXPECT_CLOSE(1.0, follower.creptDistance());
+  EXPECT_NE(std::string::npos, follower.reason().find("stopped: the localization is lost (crept 1.00 m"))
+      << follower.reason();
+  EXPECT_CLOSE(0.0, follower.command(3.0).linear_mps);  // and stays stopped
+  // The track found again, confidently: full speed, and a later stop may creep again, from there.
+  follower.localization(tracking(3, 0.9, 0.0), 3.1);
+  EXPECT_CLOSE(1.0, follower.command(3.125).linear_mps);
+  EXPECT_CLOSE(0.75, follower.command(3.125).angular_rps);
+  for (int i = 0; i < 8; ++i)  // stop_after_frames low ones in a row: 8
+    follower.localization(tracking(3, 0.1, 0.0), 3.13 + 0.01 * i);
+  const arl::FollowerCommand creep = follower.command(3.25);
+  EXPECT_CLOSE(0.5, creep.linear_mps);
+  EXPECT_CLOSE(0.5 * 0.75, creep.angular_rps);
+  EXPECT_NE(std::string::npos, follower.reason().find("creeping: confidence below 0.50 for 8")) << follower.reason();
+  EXPECT_CLOSE(0.5 * 0.125, follower.creptDistance());
+}
+
+TEST(RouteFollower, ACreepWaitsWhileTheViewIsFeaturelessThenGoesOnWithTheDistanceLeft)
+{
+  // As above: keyframes 0.5 m apart, creeping at 0.5 m/s, 0.0625 m a command every 0.125 s.
+  std::vector<arl::TaughtMotion> taught;
+  for (int k = 0; k < 5; ++k)
+    taught.push_back(motion(1.0, 0.25 * k, k == 0 ? 0.0 : 0.5));
+  arl::RouteFollowerParams params = immediate();
+  params.slow_factor = 0.5;
+  params.recovery_distance_m = 1.0;
+  arl::RouteFollower follower = started(taught, params);
+  follower.localization(tracking(1, 0.9, 0.0), 0.0);
+  EXPECT_CLOSE(1.0, follower.command(0.125).linear_mps);
+  arl::FollowerInput lost = tracking(1, 0.0, 0.0, arl::LocalizationStatus::kLost);
+  follower.localization(lost, 0.2);
+  EXPECT_CLOSE(0.5, follower.command(0.25).linear_mps);
+  EXPECT_CLOSE(0.0625, follower.creptDistance());
+  // The camera covered: the creep waits, and the distance crept stays.
+  arl::FollowerInput covered = lost;
+  covered.informative = false;
+  follower.localization(covered, 0.3);
+  EXPECT_CLOSE(0.0, follower.command(0.375).linear_mps);
+  EXPECT_CLOSE(0.0, follower.command(0.5).linear_mps);
+  EXPECT_FALSE(follower.creeping());
+  EXPECT_NE(std::string::npos, follower.reason().find("featureless")) << follower.reason();
+  EXPECT_CLOSE(0.0625, follower.creptDistance());
+  // The view back: the same creep goes on, from the same keyframe, with the 0.9375 m left: 15 commands.
+  int creeping_commands = 0;
+  double t = 0.5;
+  for (int n = 0; n < 20; ++n)
+  {
+    t += 0.125;
+    follower.localization(lost, t - 0.01);
+    const arl::FollowerCommand command = follower.command(t);
+    if (command.linear_mps > 0.0)
+    {
+      ++creeping_commands;
+      // keyframe 1 until 0.5 m are crept (before the 8th command since the start of the creep), then 2
+      const double crept_before = follower.creptDistance() - 0.0625;
+      EXPECT_CLOSE(crept_before < 0.5 ? 0.125 : 0.25, command.angular_rps) << "command " << n;
+    }
+  }
+  EXPECT_EQ(15, creeping_commands);
+  EXPECT_CLOSE(1.0, follower.creptDistance());
+}
+
+TEST(RouteFollower, ARecoveryDistanceOfZeroOrNoTrackedKeyframeStopsAtOnce)
+{
+  std::vector<arl::TaughtMotion> taught = { motion(1.0, 0.0), motion(1.0, 0.0, 0.5), motion(1.0, 0.0, 0.5) };
+  arl::RouteFollowerParams params = immediate();
+  params.recovery_distance_m = 0.0;
+  arl::RouteFollower follower = started(taught, params);
+  follower.localization(tracking(1, 0.9, 0.0), 0.0);
+  follower.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 0.1);
+  EXPECT_CLOSE(0.0, follower.command(0.2).linear_mps);
+  EXPECT_EQ("stopped: the localization is lost", follower.reason());
+  // Lost before any keyframe was tracked: nowhere to creep from.
+  arl::RouteFollower fresh = started(taught, immediate());
+  fresh.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 0.0);
+  EXPECT_CLOSE(0.0, fresh.command(0.1).linear_mps);
+  EXPECT_FALSE(fresh.creeping());
+  // The creep never runs past the last keyframe: from the one before it, it stops once the reckoning gets there.
+  arl::RouteFollower near_end = started(taught, immediate());
+  near_end.localization(tracking(2, 0.9, 0.0), 0.0);
+  near_end.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 0.1);
+  EXPECT_CLOSE(0.0, near_end.command(0.2).linear_mps);
+  EXPECT_EQ("stopped: the localization is lost", near_end.reason());
+}
+
 TEST(RouteFollower, ServicesStartPauseStop)
 {
   arl::RouteFollower follower({ motion(0.5, 0.0) }, immediate());

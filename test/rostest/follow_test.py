@@ -216,10 +216,22 @@ class FollowTest(unittest.TestCase):
         self.assertEqual(fx.status_values(stopped)['state'], 'following')
         self.drive('localizations again')
 
-        # Lost: stop; the track found again: drive.
+        # Lost with the camera covered (a featureless view): stop at once, no creep.
+        covered = localization(status=Localization.STATUS_LOST, keyframe=-1, confidence=0.0)
+        covered.query_informative = False
+        self.localizations.set(covered)
+        self.wait_for_command(0.0, 0.0, 'lost, covered')
+        self.status(lambda s: s.message.startswith('stopped: the localization is lost; the view is featureless'),
+                    'featureless in the diagnostics')
+        # Lost with views: creep at slow_factor (0.5) along the motion taught at keyframe 10 (the last one
+        # tracked), without the homing term: (0.25, 0.0625); after recovery_distance (0.25 m here) stop.
+        reconfigure.update_configuration({'recovery_distance': 0.25})
         self.localizations.set(localization(status=Localization.STATUS_LOST, keyframe=-1, confidence=0.0))
-        self.wait_for_command(0.0, 0.0, 'lost')
-        self.status(lambda s: s.message == 'stopped: the localization is lost', 'lost in the diagnostics')
+        self.wait_for_command(0.5 * TAUGHT_LINEAR, 0.5 * TAUGHT_ANGULAR, 'lost, creeping')
+        self.wait_for_command(0.0, 0.0, 'lost, after the creep')
+        self.status(lambda s: s.message.startswith('stopped: the localization is lost (crept '),
+                    'the creep in the diagnostics')
+        # The track found again: drive.
         self.drive('tracking again')
 
         # Low confidence (below 0.2): half the speed after 3 localizations, stopped after 8.

@@ -60,6 +60,7 @@ TEST(Reconfigure, RouteFollowerCfgDefaultsAreTheCoreDefaults)
   EXPECT_EQ(core.slow_after_frames, cfg.slow_after_frames);
   EXPECT_EQ(core.stop_after_frames, cfg.stop_after_frames);
   EXPECT_DOUBLE_EQ(core.slow_factor, cfg.slow_factor);
+  EXPECT_DOUBLE_EQ(core.recovery_distance_m, cfg.recovery_distance_m);
   EXPECT_DOUBLE_EQ(core.watchdog_timeout_s, cfg.watchdog_timeout_s);
   EXPECT_DOUBLE_EQ(core.max_linear_accel, cfg.max_linear_accel);
   EXPECT_DOUBLE_EQ(core.max_angular_accel, cfg.max_angular_accel);
@@ -68,7 +69,9 @@ TEST(Reconfigure, RouteFollowerCfgDefaultsAreTheCoreDefaults)
   config.max_homing_turn_rate = 0.25;
   config.homing_time_constant = 0.75;
   config.watchdog_timeout = 2.5;
+  config.recovery_distance = 7.5;
   const arl::RouteFollowerParams changed = arl::toParams(config);
+  EXPECT_DOUBLE_EQ(7.5, changed.recovery_distance_m);
   EXPECT_DOUBLE_EQ(0.25, changed.max_homing_turn_rps);
   EXPECT_DOUBLE_EQ(0.75, changed.homing_time_constant_s);
   EXPECT_DOUBLE_EQ(2.5, changed.watchdog_timeout_s);
