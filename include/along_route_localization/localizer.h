@@ -127,7 +127,9 @@ struct LocalizerParams
   /// while a track holds, a global search looks for it elsewhere (the known start's check, startRefuted;
   /// the newest frames' check, recentCheck) and moves the track there on their evidence. false: the robot
   /// only moves as it drives, from start_keyframe (a closed-loop repeat from its start, follow.launch): a
-  /// track moves only through the loss detection and the global search after it. Over 8-14 frames a
+  /// track moves only through the loss detection and the global search after it, whose match ends only
+  /// where the robot could have driven since the loss: from search_radius keyframes behind the lost track to
+  /// dtw.max_step keyframes a frame ahead of it. Over 8-14 frames a
   /// look-alike stretch of a route can be supported as well as a real kidnapping's place is (issue 31:
   /// the closed loop's two stalls), and no margin the images give tells them apart; what does is knowing
   /// that the robot drives.
@@ -373,6 +375,7 @@ private:
     bool checking_start = false;     // a known start is being checked (its row covers the whole map)
     bool first_from_start = false;   // the first frame since a known start
     int first = 0, width = 0;        // keyframes of its row (tracking: the band)
+    int reach_first = 0, reach_width = 0;  // keyframes its match may end at (lost, !detect_kidnapping: reachable)
     int predicted = 0;               // keyframe predicted while tracking: one ahead of the last match
     bool relocated = false;          // the track moved to another place on this frame (no speed sample)
     bool moved_by_check = false;     // ... by the checks of recentCheck or coastStep (moveTrackOnConfirmation)
@@ -586,6 +589,8 @@ private:
   int last_confident_ = -1;              // the last confident, informative answer while tracking
   int frames_since_confident_ = 0;
   double lost_position_ = -1.0;          // dead-reckoned keyframe while lost (< 0: none, no track to go on)
+  double lost_anchor_ = -1.0;            // where the track was lost (< 0: none), for the reachable band
+  int64_t lost_frame_ = 0;               // frames_ when it was lost (less the frames a gap missed since)
 };
 
 }  // namespace along_route_localization

@@ -176,7 +176,7 @@ void Localizer::start()
 {
   state_ = State::kInitializing;  // the initial state: nothing to leave, so not a transition
   last_match_ = -1;
-  lost_position_ = -1.0;
+  lost_position_ = lost_anchor_ = -1.0;
   last_confident_ = -1;
   frames_since_confident_ = 0;
   start_check_ = false;
@@ -594,11 +594,13 @@ void Localizer::skipFrames(int count)
     last_path_.clear();
     run_position_ = reckon_position_ = -1.0;
     recent_count_ = recent_next_ = 0;
+    lost_frame_ -= count;  // lost (now or before): the robot may have driven on through the missed frames
     return;
   }
   // Each missed frame is a row without evidence, as a featureless frame is: the DTW paths go on through
   // it at any speed it allows (the tie-break keeps the cruise speed), and the frames after the gap tell
   // where the robot went. The results are not reported.
+  lost_frame_ -= count;  // lost: the robot may have driven on through the missed frames
   for (int i = 0; i < count; ++i)
     step(nullptr);
 }
@@ -697,6 +699,22 @@ Localizer::Frame Localizer::beginFrame(const uint8_t* query)
     frame.first = std::max(0, frame.predicted - params_.search_radius);
     frame.width = std::min(n, frame.predicted + params_.search_radius + 1) - frame.first;
   }
+  frame.reach_first = frame.first;
+  frame.reach_width = frame.width;
+  if (state_ == State::kLost && !params_.detect_kidnapping && params_.method == SequenceMethod::kOnlineDtw &&
+      lost_anchor_ >= 0.0)
+  {
+    // A robot that only moves as it drives (detect_kidnapping false) is, after a loss, where it could have
+    // driven since: from search_radius keyframes behind the lost track (which may have run ahead of it) to
+    // max_step keyframes a frame ahead. The rows still cover the whole map; only the match ends there, and
+    // only paths there compete (a look-alike far along the route was confirmed and driven to: issue 31,
+    // the lens covered for 10 s, seed 3).
+    const int64_t since = static_cast<int64_t>(frames_) - lost_frame_;
+    const int64_t anchor = std::llround(lost_anchor_);
+    const int64_t last = std::min<int64_t>(n - 1, anchor + params_.search_radius + params_.dtw.max_step * since);
+    frame.reach_first = static_cast<int>(std::max<int64_t>(0, std::min<int64_t>(last, anchor - params_.search_radius)));
+    frame.reach_width = static_cast<int>(last) - frame.reach_first + 1;
+  }
   return frame;
 }
 
@@ -767,7 +785,7 @@ SequenceMatch Localizer::matchSequence(const Frame& frame)
     // every path starts there.
     const bool start_in_window = rows_since_start_ <= std::min(params_.ring_buffer_rows, ring_.size());
     const int path_start = frame.checking_start && start_in_window ? start_match_ : -1;
-    match = dtw_.match(ring_, frame.first, frame.width, params_.ring_buffer_rows, !frame.global,
+    match = dtw_.match(ring_, frame.reach_first, frame.reach_width, params_.ring_buffer_rows, !frame.global,
                        map_stats_.run.data(), first_choice, last_choice, prior, path_start);
   }
   last_path_ = match.path;
@@ -1038,7 +1056,7 @@ void Localizer::transition(State next, int place)
       last_match_ = place;
       last_confident_ = -1;
       frames_since_confident_ = 0;
-      lost_position_ = -1.0;
+      lost_position_ = lost_anchor_ = -1.0;
       last_path_.clear();
       run_position_ = reckon_position_ = -1.0;
       tracked_frames_ = 0;
@@ -1080,7 +1098,8 @@ double Localizer::coastSpeed() const
 
 void Localizer::loseTrack(double track_position)
 {
-  lost_position_ = track_position;
+  lost_position_ = lost_anchor_ = track_position;
+  lost_frame_ = static_cast<int64_t>(frames_);
   transition(State::kLost);
 }
 

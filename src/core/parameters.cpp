@@ -261,7 +261,8 @@ std::vector<ParameterSpec> makeTable()
                              "Where the robot starts (-1: unknown, a global search first)", FIELD(localizer.start_keyframe))));
   t.push_back(user(boolRow("detect_kidnapping", loc,
                            "While tracking, look for the robot elsewhere: refute a known start, move the track on the "
-                           "newest frames (false: it only moves as it drives, e.g. a closed-loop repeat)",
+                           "newest frames (false: it only moves as it drives, e.g. a closed-loop repeat, and a loss searches "
+                           "only where it could have driven)",
                            FIELD(localizer.detect_kidnapping))));
   t.push_back(numberRow("min_init_frames", loc, 1, 10000, "frames", "Frames before the first global answer",
                         FIELD(localizer.min_init_frames)));
@@ -323,11 +324,11 @@ std::vector<ParameterSpec> makeTable()
                         FIELD(follower.stop_after_frames)));
   t.push_back(numberRow("slow_factor", fol, 0, 1, "", "Fraction of the speed while slowing (and creeping)",
                         FIELD(follower.slow_factor)));
-  t.push_back(user(numberRow("watchdog_timeout", fol, 0.01, 60, "s", "Stop when no localization came for this long",
   t.push_back(user(numberRow("recovery_distance", fol, 0, 1000, "m",
                              "After a stop for low confidence or a loss, creep on (slow_factor, no homing) at most "
                              "this far to bring new views (0: stop at once)",
                              FIELD(follower.recovery_distance_m))));
+  t.push_back(user(numberRow("watchdog_timeout", fol, 0.01, 60, "s", "Stop when no localization came for this long",
                              FIELD(follower.watchdog_timeout_s))));
   t.push_back(user(numberRow("max_linear_accel", fol, 0.001, 100, "m/s^2", "Bound of the change of the forward speed",
                              FIELD(follower.max_linear_accel))));
