@@ -148,11 +148,12 @@ private:
   /// The target instead of a stop for `why`: a creep while the recovery distance lasts, else a stop.
   void creepOrStop(const std::string& why);
   /// Where the creep has brought the robot: the anchor keyframe advanced by the distance crept, keyframe by
-  /// keyframe with the taught distances.
+  /// keyframe with the taught distances (the creep drives with the motion recorded at the next one).
   size_t creepKeyframe() const;
   void setTarget(const TaughtMotion& taught, double homing_rps);
 
   std::vector<TaughtMotion> motion_;
+  bool has_distances_ = false;  // some keyframe records a distance travelled (the creep can reckon on)
   RouteFollowerParams params_;
   State state_ = State::kIdle;
   std::string reason_ = "idle: call start";

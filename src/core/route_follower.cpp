@@ -102,6 +102,7 @@ RouteFollower::RouteFollower(std::vector<TaughtMotion> motion, const RouteFollow
   if (motion_.empty())
     throw std::invalid_argument("the map holds no taught motion: the follower cannot drive it (teach again with "
                                 "the velocity topic recorded)");
+  has_distances_ = std::any_of(motion_.begin(), motion_.end(), [](const TaughtMotion& m) { return m.distance_m > 0.0; });
   setParams(params);
 }
 
@@ -305,9 +306,11 @@ void RouteFollower::setTarget(const TaughtMotion& taught, double homing_rps)
 
 size_t RouteFollower::creepKeyframe() const
 {
+  // Keyframes the teach took while standing (distance 0) are passed at once. A map without distances
+  // (none recorded) reckons nothing: the creep stays at its anchor.
   size_t k = static_cast<size_t>(creep_anchor_);
   double left_m = crept_m_ - anchor_crept_m_;
-  while (k + 1 < motion_.size() && motion_[k + 1].distance_m > 0.0 && left_m >= motion_[k + 1].distance_m)
+  while (has_distances_ && k + 1 < motion_.size() && left_m >= motion_[k + 1].distance_m)
     left_m -= motion_[++k].distance_m;
   return k;
 }
@@ -342,8 +345,10 @@ void RouteFollower::creepOrStop(const std::string& why)
   }
   creeping_ = creep_begun_ = true;
   scale_ = params_.slow_factor;
+  // The motion the teach recorded on the way from keyframe k to k + 1 (a keyframe's record is its motion
+  // since the previous one): the teach robot was moving there, also when it stood at k.
   const size_t k = creepKeyframe();
-  setTarget(motion_[k], 0.0);
+  setTarget(motion_[k + 1], 0.0);
   reason_ = "creeping: " + why +
             formatted("; %.2f of recovery_distance %.2f m, to bring new views (reckoned keyframe %.0f)", crept_m_,
                       params_.recovery_distance_m, static_cast<double>(k));

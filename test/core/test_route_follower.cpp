@@ -293,15 +293,17 @@ TEST(RouteFollower, AfterALossOrALowConfidenceStopItCreepsABoundedDistanceAlongT
   const arl::FollowerCommand tracked = follower.command(0.125);
   EXPECT_CLOSE(1.0, tracked.linear_mps);
   EXPECT_CLOSE(0.25 + 0.3, tracked.angular_rps);  // taught + 3 x 0.1 homing
-  // 16 creeping commands from keyframe 1 (the last one tracked), without the homing term: the first 8
-  // before the robot has crept the 0.5 m to keyframe 2, the next 8 after; then 1 m is crept and it stops.
+  // 16 creeping commands from keyframe 1 (the last one tracked), without the homing term, with the motion
+  // taught on the way to the next keyframe (recorded at that one): the first 8 before the robot has crept
+  // the 0.5 m to keyframe 2 (keyframe 2's motion), the next 8 after (keyframe 3's); then 1 m is crept and
+  // it stops.
   for (int n = 1; n <= 17; ++n)
   {
     const double t = 0.125 * (n + 1);
     follower.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), t - 0.01);
     const arl::FollowerCommand command = follower.command(t);
     const double expected_linear = n <= 16 ? 0.5 : 0.0;
-    const double expected_angular = n <= 8 ? 0.5 * 0.25 : (n <= 16 ? 0.5 * 0.5 : 0.0);
+    const double expected_angular = n <= 8 ? 0.5 * 0.5 : (n <= 16 ? 0.5 * 0.75 : 0.0);
     EXPECT_CLOSE(expected_linear, command.linear_mps) << "command " << n;
     EXPECT_CLOSE(expected_angular, command.angular_rps) << "command " << n;
     EXPECT_EQ(n <= 16, follower.creeping()) << "command " << n << ": " << follower.reason();
@@ -318,7 +320,7 @@ TEST(RouteFollower, AfterALossOrALowConfidenceStopItCreepsABoundedDistanceAlongT
     follower.localization(tracking(3, 0.1, 0.0), 3.13 + 0.01 * i);
   const arl::FollowerCommand creep = follower.command(3.25);
   EXPECT_CLOSE(0.5, creep.linear_mps);
-  EXPECT_CLOSE(0.5 * 0.75, creep.angular_rps);
+  EXPECT_CLOSE(0.5 * 1.0, creep.angular_rps);  // keyframe 4's motion
   EXPECT_NE(std::string::npos, follower.reason().find("creeping: confidence below 0.50 for 8")) << follower.reason();
   EXPECT_CLOSE(0.5 * 0.125, follower.creptDistance());
 }
@@ -359,13 +361,39 @@ TEST(RouteFollower, ACreepWaitsWhileTheViewIsFeaturelessThenGoesOnWithTheDistanc
     if (command.linear_mps > 0.0)
     {
       ++creeping_commands;
-      // keyframe 1 until 0.5 m are crept (before the 8th command since the start of the creep), then 2
+      // from keyframe 1 (keyframe 2's motion) until 0.5 m are crept, then from 2 (keyframe 3's)
       const double crept_before = follower.creptDistance() - 0.0625;
-      EXPECT_CLOSE(crept_before < 0.5 ? 0.125 : 0.25, command.angular_rps) << "command " << n;
+      EXPECT_CLOSE(crept_before < 0.5 ? 0.25 : 0.375, command.angular_rps) << "command " << n;
     }
   }
   EXPECT_EQ(15, creeping_commands);
   EXPECT_CLOSE(1.0, follower.creptDistance());
+}
+
+TEST(RouteFollower, ACreepPassesTheKeyframesTheTeachTookStandingAndReckonsNothingWithoutDistances)
+{
+  // Keyframes 2 and 3 were taken while the teach robot stood (distance 0, speed 0): lost at keyframe 1,
+  // the creep drives with keyframe 4's motion (the way on from the stop), at half of it.
+  std::vector<arl::TaughtMotion> taught = { motion(1.0, 0.0), motion(1.0, 0.0, 0.5), motion(0.0, 0.0, 0.0),
+                                            motion(0.0, 0.0, 0.0), motion(0.8, 0.5, 0.5), motion(1.0, 0.0, 0.5) };
+  arl::RouteFollower follower = started(taught, immediate());
+  follower.localization(tracking(1, 0.9, 0.0), 0.0);
+  follower.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 0.1);
+  const arl::FollowerCommand creep = follower.command(0.2);
+  EXPECT_CLOSE(0.4, creep.linear_mps);
+  EXPECT_CLOSE(0.25, creep.angular_rps);
+  EXPECT_NE(std::string::npos, follower.reason().find("reckoned keyframe 3")) << follower.reason();
+  // No distances recorded: the creep stays with the motion taught after its anchor, however far it creeps.
+  std::vector<arl::TaughtMotion> no_distances = { motion(1.0, 0.0), motion(1.0, 0.1), motion(1.0, 0.2) };
+  arl::RouteFollower blind = started(no_distances, immediate());
+  blind.localization(tracking(0, 0.9, 0.0), 0.0);
+  blind.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 0.1);
+  for (int n = 1; n <= 10; ++n)
+  {
+    blind.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 0.05 + 0.25 * n);
+    EXPECT_CLOSE(0.5 * 0.1, blind.command(0.1 + 0.25 * n).angular_rps) << "command " << n;
+  }
+  EXPECT_CLOSE(0.5 * 2.6, blind.creptDistance());  // at 0.5 m/s from the start (0 s) to the last command
 }
 
 TEST(RouteFollower, ARecoveryDistanceOfZeroOrNoTrackedKeyframeStopsAtOnce)
@@ -383,7 +411,7 @@ TEST(RouteFollower, ARecoveryDistanceOfZeroOrNoTrackedKeyframeStopsAtOnce)
   fresh.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 0.0);
   EXPECT_CLOSE(0.0, fresh.command(0.1).linear_mps);
   EXPECT_FALSE(fresh.creeping());
-  // The creep never runs past the last keyframe: from the one before it, it stops once the reckoning gets there.
+  // The creep never runs past the last keyframe: from the last one it stops at once.
   arl::RouteFollower near_end = started(taught, immediate());
   near_end.localization(tracking(2, 0.9, 0.0), 0.0);
   near_end.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 0.1);
