@@ -48,6 +48,26 @@ arl::RouteFollowerParams immediate()
   return params;
 }
 
+// The creep tests' route: keyframes 0.5 m apart, the taught turn rate 0.25 rad/s per keyframe index. With
+// creepParams a creep goes at half the taught 1 m/s, so a command every 0.125 s moves the robot
+// 0.5 m/s x 0.125 s = 0.0625 m (all exact in binary), for at most 1 m.
+std::vector<arl::TaughtMotion> creepRoute()
+{
+  std::vector<arl::TaughtMotion> taught;
+  for (int k = 0; k < 5; ++k)
+    taught.push_back(motion(1.0, 0.25 * k, k == 0 ? 0.0 : 0.5));
+  return taught;
+}
+
+arl::RouteFollowerParams creepParams()
+{
+  arl::RouteFollowerParams params = immediate();
+  params.min_confidence = 0.5;
+  params.slow_factor = 0.5;
+  params.recovery_distance_m = 1.0;
+  return params;
+}
+
 arl::RouteFollower started(const std::vector<arl::TaughtMotion>& taught, const arl::RouteFollowerParams& params)
 {
   arl::RouteFollower follower(taught, params);
@@ -279,16 +299,8 @@ TEST(RouteFollower, StopsWhileLostOrInitializingOrOnAKeyframeOutsideTheMap)
 
 TEST(RouteFollower, AfterALossOrALowConfidenceStopItCreepsABoundedDistanceAlongTheTaughtMotionThenStops)
 {
-  // Keyframes 0.5 m apart, the taught turn rate 0.25 rad/s per keyframe index; creeping at half speed, a
-  // command every 0.125 s moves the robot 0.5 m/s x 0.125 s = 0.0625 m (all exact in binary).
-  std::vector<arl::TaughtMotion> taught;
-  for (int k = 0; k < 5; ++k)
-    taught.push_back(motion(1.0, 0.25 * k, k == 0 ? 0.0 : 0.5));
-  arl::RouteFollowerParams params = immediate();
-  params.min_confidence = 0.5;
-  params.slow_factor = 0.5;
-  params.recovery_distance_m = 1.0;
-  arl::RouteFollower follower = started(taught, params);
+  // creepRoute, creepParams: 0.0625 m a command every 0.125 s, at most 1 m.
+  arl::RouteFollower follower = started(creepRoute(), creepParams());
   follower.localization(tracking(1, 0.9, 0.1), 0.0);
   const arl::FollowerCommand tracked = follower.command(0.125);
   EXPECT_CLOSE(1.0, tracked.linear_mps);
@@ -327,14 +339,8 @@ TEST(RouteFollower, AfterALossOrALowConfidenceStopItCreepsABoundedDistanceAlongT
 
 TEST(RouteFollower, ACreepWaitsWhileTheViewIsFeaturelessThenGoesOnWithTheDistanceLeft)
 {
-  // As above: keyframes 0.5 m apart, creeping at 0.5 m/s, 0.0625 m a command every 0.125 s.
-  std::vector<arl::TaughtMotion> taught;
-  for (int k = 0; k < 5; ++k)
-    taught.push_back(motion(1.0, 0.25 * k, k == 0 ? 0.0 : 0.5));
-  arl::RouteFollowerParams params = immediate();
-  params.slow_factor = 0.5;
-  params.recovery_distance_m = 1.0;
-  arl::RouteFollower follower = started(taught, params);
+  // creepRoute, creepParams: 0.0625 m a command every 0.125 s, at most 1 m.
+  arl::RouteFollower follower = started(creepRoute(), creepParams());
   follower.localization(tracking(1, 0.9, 0.0), 0.0);
   EXPECT_CLOSE(1.0, follower.command(0.125).linear_mps);
   arl::FollowerInput lost = tracking(1, 0.0, 0.0, arl::LocalizationStatus::kLost);
