@@ -325,8 +325,9 @@ void RouteFollower::creepOrStop(const std::string& why)
     creep_anchor_ = last_on_route_keyframe_;
     anchor_crept_m_ = crept_m_;
   }
-  const bool can_creep = creep_anchor_ >= 0 && creep_anchor_ < static_cast<int>(motion_.size()) &&
-                         crept_m_ < params_.recovery_distance_m && creepKeyframe() + 1 < motion_.size();
+  const bool anchored = creep_anchor_ >= 0 && creep_anchor_ < static_cast<int>(motion_.size());
+  const size_t k = anchored ? creepKeyframe() : 0;
+  const bool can_creep = anchored && crept_m_ < params_.recovery_distance_m && k + 1 < motion_.size();
   if (!can_creep)
   {
     reason_ = "stopped: " + why;
@@ -347,7 +348,6 @@ void RouteFollower::creepOrStop(const std::string& why)
   scale_ = params_.slow_factor;
   // The motion the teach recorded on the way from keyframe k to k + 1 (a keyframe's record is its motion
   // since the previous one): the teach robot was moving there, also when it stood at k.
-  const size_t k = creepKeyframe();
   setTarget(motion_[k + 1], 0.0);
   reason_ = "creeping: " + why +
             formatted("; %.2f of recovery_distance %.2f m, to bring new views (reckoned keyframe %.0f)", crept_m_,
