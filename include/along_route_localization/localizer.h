@@ -382,10 +382,11 @@ private:
     bool contradicted = false;       // this frame's check (coasting, recentCheck) found another place: lost
   };
   /// One frame of process(), or a frame the camera missed (query nullptr: a featureless row, skipFrames):
-  /// the frame's row, its sequence match, the handler of the state it came in, the result.
-  LocalizationResult step(const uint8_t* query);
+  /// the frame's row, its sequence match, the handler of the state it came in, the result. energy: the
+  /// query's textureEnergy (0 for nullptr), computed once per frame by process().
+  LocalizationResult step(const uint8_t* query, float energy);
   /// What the query is (texture, a repeated view) and where its row goes (band, global, the start's check).
-  Frame beginFrame(const uint8_t* query);
+  Frame beginFrame(const uint8_t* query, float energy);
   /// Appends the frame's row to the ring buffer (first the recent queries' after a loss) and keeps the
   /// query among the recent ones.
   void appendRow(const Frame& frame);
@@ -416,9 +417,9 @@ private:
   /// The query shows the view of the last one that entered the ring buffer (stationary_ratio): the
   /// camera stood still. False for nullptr.
   bool repeatsLastView(const uint8_t* query) const;
-  /// Whether the query has texture enough to tell anything (textureEnergy >= min_texture_energy); not
-  /// featureless. beginFrame applies the same rule to the energy it keeps for the row.
-  bool textured(const uint8_t* query) const;
+  /// Whether a query of that textureEnergy has texture enough to tell anything (>= min_texture_energy):
+  /// not featureless.
+  bool textured(float energy) const { return energy >= map_stats_.min_texture_energy; }
   /// Status after construction or reset(): tracking from start_keyframe, or initializing.
   void start();
   /// While a known start (start_keyframe) is checked (the first K new views): the global search over the

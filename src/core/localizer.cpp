@@ -518,7 +518,8 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   // A featureless frame taken where the last one was (the robot's odometry says it stood still) tells
   // nothing and nothing moved: the sequence, the checks and the dead reckoning stay as they are, and the
   // answer is the last one (after a gap or a restart the frame goes through as any other).
-  if (motion == RobotMotion::kStoodStill && !tick.went_back && tick.missed == 0 && frames_ > 0 && !textured(query))
+  const float energy = textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows());
+  if (motion == RobotMotion::kStoodStill && !tick.went_back && tick.missed == 0 && frames_ > 0 && !textured(energy))
   {
     ++frames_;
     LocalizationResult result = last_result_;
@@ -534,7 +535,7 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
   // identical keyframes (a station where the teach robot stood too): there the robot goes on through the
   // run at the speed it came, as frame by frame (motionPrior, keyframeThroughRun).
   const bool in_run = last_match_ >= 0 && inRunOfCopies(last_match_);
-  const bool same_view = tick.missed > 0 && !in_run && repeatsLastView(query) && textured(query);
+  const bool same_view = tick.missed > 0 && !in_run && repeatsLastView(query) && textured(energy);
   // (FrameClock reports no missed frames when time went back.)
   FrameGap gap = FrameGap::kNone;
   if (tick.missed > 0)
@@ -546,17 +547,12 @@ LocalizationResult Localizer::process(const cv::Mat& preprocessed, int64_t stamp
       skipFrames(tick.missed);
   }
   ++frames_;
-  LocalizationResult result = step(query);
+  LocalizationResult result = step(query, energy);
   result.time_went_back = tick.went_back;
   result.missed_frames = tick.missed;
   result.gap = gap;
   last_result_ = result;
   return result;
-}
-
-bool Localizer::textured(const uint8_t* query) const
-{
-  return textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) >= map_stats_.min_texture_energy;
 }
 
 bool Localizer::repeatsLastView(const uint8_t* query) const
@@ -602,12 +598,12 @@ void Localizer::skipFrames(int count)
   // where the robot went. The results are not reported.
   lost_frame_ -= count;  // lost: the robot may have driven on through the missed frames
   for (int i = 0; i < count; ++i)
-    step(nullptr);
+    step(nullptr, 0.0f);
 }
 
-LocalizationResult Localizer::step(const uint8_t* query)
+LocalizationResult Localizer::step(const uint8_t* query, float energy)
 {
-  Frame frame = beginFrame(query);
+  Frame frame = beginFrame(query, energy);
   appendRow(frame);
   if (!query && frame.global)
   {
@@ -665,13 +661,13 @@ LocalizationResult Localizer::step(const uint8_t* query)
                                    confidence);
 }
 
-Localizer::Frame Localizer::beginFrame(const uint8_t* query)
+Localizer::Frame Localizer::beginFrame(const uint8_t* query, float energy)
 {
   const int n = static_cast<int>(map_->size());
   Frame frame;
   frame.query = query;
-  frame.energy = query ? textureEnergy(query, map_->width(), map_->height(), map_->params().skyRows()) : 0.0f;
-  frame.informative = query && frame.energy >= map_stats_.min_texture_energy;  // textured(), energy kept
+  frame.energy = query ? energy : 0.0f;
+  frame.informative = query && textured(frame.energy);
   // The query repeats the previous row's view (the camera stood still): flagged for column centering.
   frame.repeated = repeatsLastView(query);
   frame.tracking = last_match_ >= 0 && (state_ == State::kTracking || state_ == State::kCoasting);
