@@ -119,6 +119,15 @@ class RenderingTest(unittest.TestCase):
                 self.assertGreater(abs(shift), 0.8 * abs(expected), (position, degrees, shift, expected))
                 self.assertLess(abs(shift), 1.1 * abs(mean), (position, degrees, shift, mean))
 
+    def test_a_camera_moved_left_sees_the_scene_move_right(self):
+        # --repeat-lateral-m: parallax; content moves right (positive shift) for a camera moved left.
+        for position in (5.0, 20.0):
+            x, y, heading = self.world.route.pose(position, 1.0)
+            left = self.renderer.render(x, y, heading)
+            gray = self.cv2.resize(self.cv2.cvtColor(left, self.cv2.COLOR_BGR2GRAY), (64, 32),
+                                   interpolation=self.cv2.INTER_AREA).astype(np.float64)
+            self.assertGreater(measured_shift(self.small(position, 0.0), gray), 0.0, position)
+
     def test_same_pose_same_image_and_nearby_frames_differ(self):
         a = self.small(10.0, 0.0)
         np.testing.assert_array_equal(a, self.small(10.0, 0.0))
@@ -373,6 +382,24 @@ class ConditionsCommandLineTest(unittest.TestCase):
                 self.assertGreater(np.abs(a.astype(int) - b.astype(int)).mean(), 2.0, row)
             else:
                 np.testing.assert_array_equal(a, b)
+
+    def test_lateral_offset_moves_only_the_repeat_run(self):
+        base, base_rows, _ = self.generate("base_lateral")
+        side, rows, _ = self.generate("side", "--repeat-lateral-m", "1.5")
+        self.assertNotIn("repeat_lateral_m", base_rows[0])   # without the option: the columns of before
+        self.assertEqual(list(rows[0].keys()), list(base_rows[0].keys()) + ["repeat_lateral_m"])
+        for row, base_row in zip(rows, base_rows):
+            self.assertEqual(row["repeat_lateral_m"], "1.500")
+            self.assertEqual({k: v for k, v in row.items() if k != "repeat_lateral_m"}, base_row)
+        for a, b in zip(self.images(base, "teach"), self.images(side, "teach")):
+            np.testing.assert_array_equal(a, b)                # the teach run is untouched
+        for a, b in zip(self.images(base, "repeat"), self.images(side, "repeat")):
+            self.assertGreater(np.abs(a.astype(int) - b.astype(int)).mean(), 2.0)
+        with contextlib.redirect_stderr(io.StringIO()) as stderr:
+            with self.assertRaises(SystemExit) as caught:
+                generate_route.main(["--output", self.tmp, "--repeat-lateral-m", "3.5"])
+        self.assertEqual(caught.exception.code, 2)
+        self.assertIn("--repeat-lateral-m must be in [-3, 3]", stderr.getvalue())
 
     def test_bad_conditions_are_refused(self):
         with contextlib.redirect_stderr(io.StringIO()) as stderr:
