@@ -30,14 +30,19 @@ struct ShiftedDifference
 /// with keyframe columns [m - d, width - m - d) for every d in [-m, m]; the smallest SAD wins.
 /// With subpixel refinement the shift is the vertex of the parabola through the best cost and its two
 /// neighbours (the cost stays the integer minimum).
+/// With `bands` > 1 the compared rows are split into that many horizontal bands of (nearly) equal height,
+/// each shifted on its own: the cost is the sum of each band's smallest SAD (a camera beside the taught
+/// line sees near things, low in the image, move more than distant ones: parallax). The reported shift is
+/// still that of the whole strip.
 class ImageDifference
 {
 public:
-  ImageDifference(int width, int height, int first_row, int max_shift_px, bool subpixel = true);
+  ImageDifference(int width, int height, int first_row, int max_shift_px, bool subpixel = true, int bands = 1);
 
   int width() const { return width_; }
   int height() const { return height_; }
   int maxShift() const { return max_shift_px_; }
+  int bands() const { return bands_; }
   /// Pixels compared per shift: (height - first_row) * (width - 2m).
   int comparedPixels() const { return (height_ - first_row_) * (width_ - 2 * max_shift_px_); }
 
@@ -58,6 +63,7 @@ public:
 private:
   int width_, height_, first_row_, max_shift_px_;
   bool subpixel_;
+  int bands_;
 };
 
 /// 2x2 box average, rounded to nearest: half has (width / 2) x (height / 2) pixels, an odd last column or

@@ -46,6 +46,10 @@ struct LocalizerParams
   CostFunction cost_function = CostFunction::kSad;
   int ring_buffer_rows = 30;          ///< K, frames in the sequence window
   int max_shift_px = 4;               ///< m, horizontal shift search range, px of the preprocessed image
+  /// Horizontal bands of the compared rows that each take their own shift in [-m, m] (ImageDifference):
+  /// 1, the paper's one shift for the whole strip; 2 for a repeat beside the taught line, where the near
+  /// ground low in the view moves more than what is far (doc/results.md, "A repeat beside the taught line").
+  int shift_bands = 1;
   bool subpixel_shift = true;
   int contrast_window = 10;           ///< n, eq. 2 half window, keyframes
   float contrast_clamp = 2.0f;        ///< |enhanced cost| limit

@@ -369,13 +369,37 @@ ShiftedDifference pickBestShift(const uint32_t* cost, int max_shift_px, int comp
   return result;
 }
 
+/// Step 2 with the compared rows in `bands` horizontal bands, each at its own best shift (ImageDifference).
+ShiftedDifference bandedDifference(const Strip& strip, int bands, const uint8_t* query, const uint8_t* keyframe,
+                                   int compared_pixels, bool subpixel, const uint8_t* next = nullptr)
+{
+  const int m = strip.max_shift, shifts = 2 * m + 1, rows = strip.height - strip.first_row;
+  uint32_t whole[256] = {};
+  uint64_t best_sum = 0;
+  for (int b = 0; b < bands; ++b)
+  {
+    const Strip band{ strip.width, strip.first_row + rows * b / bands, strip.first_row + rows * (b + 1) / bands, m };
+    uint32_t sad[256];
+    band.sads(query, keyframe, -m, shifts, sad, next);
+    best_sum += *std::min_element(sad, sad + shifts);
+    for (int i = 0; i < shifts; ++i)
+      whole[i] += sad[i];
+  }
+  ShiftedDifference d = pickBestShift(whole, m, compared_pixels, subpixel);  // the whole strip's shift
+  d.cost = static_cast<float>(best_sum) / static_cast<float>(compared_pixels);
+  return d;
+}
+
 }  // namespace
 
-ImageDifference::ImageDifference(int width, int height, int first_row, int max_shift_px, bool subpixel)
-  : width_(width), height_(height), first_row_(first_row), max_shift_px_(max_shift_px), subpixel_(subpixel)
+ImageDifference::ImageDifference(int width, int height, int first_row, int max_shift_px, bool subpixel, int bands)
+  : width_(width), height_(height), first_row_(first_row), max_shift_px_(max_shift_px), subpixel_(subpixel),
+    bands_(bands)
 {
   if (width <= 0 || height <= 0 || first_row < 0 || first_row >= height)
     throw std::invalid_argument("ImageDifference: need width, height > 0 and 0 <= first_row < height");
+  if (bands < 1 || bands > height - first_row)
+    throw std::invalid_argument("ImageDifference: bands must be in [1, compared rows]");
   if (max_shift_px < 0 || max_shift_px > 127 || width - 2 * max_shift_px < 1)
     throw std::invalid_argument("ImageDifference: max_shift_px must be in [0, min(127, (width - 1) / 2)]");
 }
@@ -389,6 +413,9 @@ uint32_t ImageDifference::sadAtShift(const uint8_t* query, const uint8_t* keyfra
 
 ShiftedDifference ImageDifference::compare(const uint8_t* query, const uint8_t* keyframe) const
 {
+  if (bands_ > 1)
+    return bandedDifference(Strip{ width_, first_row_, height_, max_shift_px_ }, bands_, query, keyframe,
+                            comparedPixels(), subpixel_);
   uint32_t sad[256];
   Strip{ width_, first_row_, height_, max_shift_px_ }.sads(query, keyframe, -max_shift_px_, 2 * max_shift_px_ + 1, sad);
   return pickBestShift(sad, max_shift_px_, comparedPixels(), subpixel_);
@@ -401,10 +428,10 @@ namespace
 class CompareManyBody : public cv::ParallelLoopBody
 {
 public:
-  CompareManyBody(const Strip& strip, int compared_pixels, bool subpixel, const uint8_t* query,
+  CompareManyBody(const Strip& strip, int bands, int compared_pixels, bool subpixel, const uint8_t* query,
                   const uint8_t* keyframes, float* costs, float* shifts)
-    : strip_(strip), compared_pixels_(compared_pixels), subpixel_(subpixel), query_(query), keyframes_(keyframes),
-      costs_(costs), shifts_(shifts)
+    : strip_(strip), bands_(bands), compared_pixels_(compared_pixels), subpixel_(subpixel), query_(query),
+      keyframes_(keyframes), costs_(costs), shifts_(shifts)
   {
   }
 
@@ -416,8 +443,15 @@ public:
     for (int k = range.start; k < range.end; ++k)
     {
       const uint8_t* keyframe = keyframes_ + k * bytes;
-      strip_.sads(query_, keyframe, -m, 2 * m + 1, sad, k + 1 < range.end ? keyframe + bytes : nullptr);
-      const ShiftedDifference d = pickBestShift(sad, m, compared_pixels_, subpixel_);
+      const uint8_t* next = k + 1 < range.end ? keyframe + bytes : nullptr;
+      ShiftedDifference d;
+      if (bands_ > 1)
+        d = bandedDifference(strip_, bands_, query_, keyframe, compared_pixels_, subpixel_, next);
+      else
+      {
+        strip_.sads(query_, keyframe, -m, 2 * m + 1, sad, next);
+        d = pickBestShift(sad, m, compared_pixels_, subpixel_);
+      }
       costs_[k] = d.cost;
       shifts_[k] = d.shift_px;
     }
@@ -425,6 +459,7 @@ public:
 
 private:
   Strip strip_;
+  int bands_;
   int compared_pixels_;
   bool subpixel_;
   const uint8_t* query_;
@@ -438,8 +473,8 @@ private:
 void ImageDifference::compareMany(const uint8_t* query, const uint8_t* keyframes, int count, float* costs,
                                   float* shifts, bool parallel) const
 {
-  const CompareManyBody body(Strip{ width_, first_row_, height_, max_shift_px_ }, comparedPixels(), subpixel_, query,
-                             keyframes, costs, shifts);
+  const CompareManyBody body(Strip{ width_, first_row_, height_, max_shift_px_ }, bands_, comparedPixels(), subpixel_,
+                             query, keyframes, costs, shifts);
   // Below a few hundred keyframes the thread hand-over costs more than it saves.
   if (parallel && count >= 512)
     cv::parallel_for_(cv::Range(0, count), body, std::max(1.0, count / 256.0));

@@ -72,6 +72,8 @@ std::string LocalizerParams::validate() const
       << seqslam.max_velocity << " by " << seqslam.velocity_step;
   else if (seqslam.exclusion_radius < 0)
     e << "seqslam exclusion_radius must be >= 0, got " << seqslam.exclusion_radius;
+  else if (shift_bands > 1 && cost_function != CostFunction::kSad)
+    e << "shift_bands " << shift_bands << " needs cost_function sad (the census cost takes one shift)";
   else if (ring_buffer_rows < min_init_frames)
     // A global search answers from the min_init_frames-th row on; the window would never hold that many,
     // and a track once lost would stay lost (Nordland, K = 4 and min_init_frames 5: lost from frame 22 on).
@@ -202,7 +204,11 @@ void Localizer::setParams(const LocalizerParams& params)
               std::to_string(params.start_keyframe) + " (-1: unknown, search the whole map)";
   if (!invalid.empty())
     throw std::invalid_argument("invalid localizer parameters: " + invalid);
+  if (invalid.empty() && params.shift_bands > map_->height() - firstComparedRow())
+    invalid = "shift_bands must be at most the compared rows (" + std::to_string(map_->height() - firstComparedRow()) +
+              ")";
   const bool comparators_changed = !difference_ || params.max_shift_px != params_.max_shift_px ||
+                                   params.shift_bands != params_.shift_bands ||
                                    params.subpixel_shift != params_.subpixel_shift ||
                                    params.cost_function != params_.cost_function ||
                                    params.coarse_search_keyframes != params_.coarse_search_keyframes ||
@@ -304,7 +310,8 @@ void Localizer::rebuildComparators()
 {
   const int w = map_->width(), h = map_->height();
   const int first_row = firstComparedRow();
-  difference_.reset(new ImageDifference(w, h, first_row, params_.max_shift_px, params_.subpixel_shift));
+  difference_.reset(
+      new ImageDifference(w, h, first_row, params_.max_shift_px, params_.subpixel_shift, params_.shift_bands));
   homing_.reset(new HomingEstimator(w, h, first_row,
                                     clampedHomingParams(w, h, first_row, params_.homing_max_shift_px,
                                                         params_.homing_max_vertical_shift_px)));
@@ -326,7 +333,8 @@ void Localizer::rebuildComparators()
       first_row / 2 < h / 2)
   {
     // Integer shifts: a coarse row's shifts are not reported (process() measures the answer's at full size).
-    coarse_difference_.reset(new ImageDifference(w / 2, h / 2, first_row / 2, coarse_shift, false));
+    coarse_difference_.reset(new ImageDifference(w / 2, h / 2, first_row / 2, coarse_shift, false,
+                                                 std::min(params_.shift_bands, h / 2 - first_row / 2)));
     const size_t coarse_bytes = static_cast<size_t>(w / 2) * (h / 2);
     coarse_keyframes_.resize(map_->size() * coarse_bytes);
     halveImages(map_->keyframe(0), map_->size(), w, h, coarse_keyframes_.data());

@@ -159,6 +159,10 @@ std::vector<ParameterSpec> makeTable()
                              "m: horizontal shift search range in the preprocessed image (corrected to leave a compared "
                              "strip)",
                              FIELD(localizer.max_shift_px))));
+  t.push_back(numberRow("shift_bands", loc, 1, 16, "bands",
+                        "Horizontal bands of the image each shifted on its own in the shift search (1: one shift; 2 "
+                        "for a repeat beside the taught line)",
+                        FIELD(localizer.shift_bands)));
   t.push_back(user(numberRow("homing_max_shift_px", loc, 0, 127, "px",
                              "Horizontal shift range of the homing estimate (homing.h), px of the preprocessed image",
                              FIELD(localizer.homing_max_shift_px))));

@@ -292,6 +292,28 @@ void BM_SadCompareMany(benchmark::State& state)
 }
 BENCHMARK(BM_SadCompareMany)->Apply(mapSizeParallelArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
 
+// The tracking band (81 keyframes, one thread) with the compared rows in 1 or 2 bands (shift_bands): the
+// same bytes, the shift search run per band.
+void BM_SadCompareBand(benchmark::State& state)
+{
+  const int bands = static_cast<int>(state.range(0));
+  const int n = 81;
+  const auto map = routeMap(n);
+  const arl::ImageDifference difference(kWidth, kHeight, 0, kMaxShiftPx, true, bands);
+  QueryStream stream(n / 2);
+  cv::Mat query;
+  stream.next(query);
+  std::vector<float> costs(n), shifts(n);
+  for (auto _ : state)
+  {
+    difference.compareMany(query.data, map->data(), n, costs.data(), shifts.data(), false);
+    benchmark::DoNotOptimize(costs.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(map->keyframeBytes()) * n);
+}
+BENCHMARK(BM_SadCompareBand)->ArgNames({ "shift_bands" })->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
+
 // ------------------------------------------------------------------------------------------------
 // The homing estimate (homing.h) of one query against its matched keyframe, once per frame: the
 // defaults (+-16 px over the whole width, +-2 rows per column), next to the SAD search above, which

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -57,6 +58,36 @@ TEST(ImageDifference, SubpixelShiftIsTheVertexOfTheParabola)
   const arl::ShiftedDifference best = difference.compare(kTinyQuery, kTinyKeyframe);
   EXPECT_NEAR(18.0 / 140.0, best.shift_px, 1e-5);
   EXPECT_FLOAT_EQ(1.75f, best.cost);
+}
+
+TEST(ImageDifference, BandsTakeEachTheirOwnShiftByHand)
+{
+  // 8 x 2, m = 1, compared columns 1..6. Row 0 of the query is the keyframe's row 0 moved right by 1, row 1
+  // the keyframe's row 1 moved left by 1 (parallax: the two bands moved by different amounts).
+  //   keyframe row 0: 0 10 20 30 40 50 60 70      query row 0 (its cols 1..6): 0 10 20 30 40 50
+  //   keyframe row 1: 0 5 15 30 50 75 105 140     query row 1 (its cols 1..6): 15 30 50 75 105 140
+  // Row 0 against keyframe cols 1-d..6-d: d = +1: 0, d = 0: 6 x 10 = 60, d = -1: 6 x 20 = 120.
+  // Row 1: d = -1: 0, d = 0: 10+15+20+25+30+35 = 135, d = +1: 15+25+35+45+55+65 = 240.
+  // One shift for both rows: d = -1 (120 + 0 = 120 against 195 and 240), cost 120 / 12 = 10.
+  // Two bands, each at its own best: 0 + 0, cost 0; the reported shift is still the whole strip's, -1.
+  const uint8_t keyframe[16] = { 0, 10, 20, 30, 40, 50, 60, 70,  //
+                                 0, 5,  15, 30, 50, 75, 105, 140 };
+  const uint8_t query[16] = { 0,  0,  10, 20, 30, 40,  50,  60,  //
+                              5, 15, 30, 50, 75, 105, 140, 140 };
+  const arl::ImageDifference one(8, 2, 0, 1, false);
+  const arl::ImageDifference two(8, 2, 0, 1, false, 2);
+  EXPECT_EQ(1, one.bands());
+  EXPECT_EQ(2, two.bands());
+  EXPECT_EQ(12, two.comparedPixels());
+  EXPECT_FLOAT_EQ(10.0f, one.compare(query, keyframe).cost);
+  EXPECT_FLOAT_EQ(-1.0f, one.compare(query, keyframe).shift_px);
+  EXPECT_FLOAT_EQ(0.0f, two.compare(query, keyframe).cost);
+  EXPECT_FLOAT_EQ(-1.0f, two.compare(query, keyframe).shift_px);
+  // A band per row of the tiny pair above (both rows best at d = 0): 8 + 6, the same as one shift.
+  EXPECT_FLOAT_EQ(1.75f, arl::ImageDifference(6, 2, 0, 1, false, 2).compare(kTinyQuery, kTinyKeyframe).cost);
+  EXPECT_THROW(arl::ImageDifference(8, 2, 0, 1, false, 0), std::invalid_argument);
+  EXPECT_THROW(arl::ImageDifference(8, 2, 0, 1, false, 3), std::invalid_argument);  // more bands than rows
+  EXPECT_THROW(arl::ImageDifference(8, 4, 2, 1, false, 3), std::invalid_argument);  // 2 rows below the sky
 }
 
 TEST(ImageDifference, FirstRowSkipsSkyRows)
@@ -125,9 +156,11 @@ TEST(ImageDifference, CompareManyEqualsCompareForEveryKeyframe)
   // A query close to keyframe 20 shifted by 1, so that one keyframe stands out.
   std::vector<uint8_t> keyframe20(keyframes.begin() + 20 * width * height, keyframes.begin() + 21 * width * height);
   const std::vector<uint8_t> query = shiftedRight(keyframe20, width, height, 1);
-  for (int first_row : { 0, 5 })
+  for (const std::pair<int, int>& rows_bands : { std::make_pair(0, 1), std::make_pair(5, 1), std::make_pair(0, 2),
+                                                  std::make_pair(5, 3) })
   {
-    const arl::ImageDifference difference(width, height, first_row, 4, true);
+    const int first_row = rows_bands.first;
+    const arl::ImageDifference difference(width, height, first_row, 4, true, rows_bands.second);
     for (bool parallel : { false, true })
     {
       std::vector<float> costs(count, -1.0f), shifts(count, -99.0f);

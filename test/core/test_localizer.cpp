@@ -162,7 +162,10 @@ TEST(LocalizerParams, ValidateNamesInvalidValues)
   invalid[13].relocalization_rows = -1;
   // Found in review: these ran (a negative stop penalty, a NaN cost) or took minutes (a million
   // baseline velocities, a loss window of 2e9 frames).
-  invalid.resize(25);
+  invalid.resize(27);
+  invalid[25].shift_bands = 0;
+  invalid[26].shift_bands = 2;  // the census cost takes one shift for the whole strip
+  invalid[26].cost_function = arl::CostFunction::kCensus;
   invalid[22].contrast_clamp = std::numeric_limits<float>::infinity();
   invalid[23].confidence_scale = std::numeric_limits<float>::infinity();
   invalid[24].dtw.exclusion_radius = 2000000000;
@@ -178,6 +181,8 @@ TEST(LocalizerParams, ValidateNamesInvalidValues)
     EXPECT_NE("", invalid[i].validate()) << "case " << i;
   EXPECT_NE(std::string::npos, invalid[9].validate().find("row_weight_range")) << invalid[9].validate();
   EXPECT_NE(std::string::npos, invalid[12].validate().find("cruise_speed_frames")) << invalid[12].validate();
+  EXPECT_NE(std::string::npos, invalid[26].validate().find("shift_bands 2 needs cost_function sad"))
+      << invalid[26].validate();
 
   for (auto method : { arl::SequenceMethod::kOnlineDtw, arl::SequenceMethod::kSeqSlam })
   {

@@ -422,7 +422,7 @@ class LocalizeOfflineTest(unittest.TestCase):
                       '        K: frames in the sequence window', result.stdout)
         self.assertIn('    normalization = divisive  (patch | divisive | none)\n', result.stdout)
         self.assertNotIn('skip_penalty', result.stdout)
-        self.assertIn('  and 40 advanced parameters, not shown', result.stdout)
+        self.assertIn('  and 41 advanced parameters, not shown', result.stdout)
         self.assertIn('localize_offline --help-advanced lists them', result.stdout)
 
         def listed(stdout):
@@ -435,7 +435,7 @@ class LocalizeOfflineTest(unittest.TestCase):
         for name in ('min_texture_ratio', 'seqslam_sequence_length', 'parallel', 'output_gain'):
             self.assertNotIn(name, user)
         # With --help-advanced every name the parameter file takes is listed (once), with a default and a
-        # line of meaning: the user tier's and the 40 others.
+        # line of meaning: the user tier's and the 41 others.
         result = self.run_runner('--help-advanced')
         self.assertEqual(result.returncode, 0, result.stderr)
         self.assertIn('    skip_penalty = 0.85  (0 .. 10 cost)\n', result.stdout)
@@ -443,7 +443,7 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertNotIn('not shown', result.stdout)
         every = listed(result.stdout)
         self.assertEqual(len(every), len(set(every)))
-        self.assertEqual(len(every), 60)
+        self.assertEqual(len(every), 61)
         self.assertTrue(set(user) < set(every))
         for name in ('max_step', 'min_texture_ratio', 'output_width', 'seqslam_sequence_length', 'parallel'):
             self.assertIn(name, every)
