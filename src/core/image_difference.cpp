@@ -380,10 +380,15 @@ ShiftedDifference bandedDifference(const Strip& strip, int bands, const uint8_t*
   {
     const Strip band{ strip.width, strip.first_row + rows * b / bands, strip.first_row + rows * (b + 1) / bands, m };
     uint32_t sad[256];
+    std::fill_n(sad, shifts, 0u);  // (written by sads; set so that no compiler sees a read of unset bytes)
     band.sads(query, keyframe, -m, shifts, sad, next);
-    best_sum += *std::min_element(sad, sad + shifts);
+    uint32_t least = sad[0];
     for (int i = 0; i < shifts; ++i)
+    {
+      least = std::min(least, sad[i]);
       whole[i] += sad[i];
+    }
+    best_sum += least;
   }
   ShiftedDifference d = pickBestShift(whole, m, compared_pixels, subpixel);  // the whole strip's shift
   d.cost = static_cast<float>(best_sum) / static_cast<float>(compared_pixels);

@@ -83,7 +83,8 @@ TEST(ImageDifference, BandsTakeEachTheirOwnShiftByHand)
   EXPECT_FLOAT_EQ(-1.0f, one.compare(query, keyframe).shift_px);
   EXPECT_FLOAT_EQ(0.0f, two.compare(query, keyframe).cost);
   EXPECT_FLOAT_EQ(-1.0f, two.compare(query, keyframe).shift_px);
-  // A band per row of the tiny pair above (both rows best at d = 0): 8 + 6, the same as one shift.
+  // A band per row of the tiny pair above: row 0 best at d = 0 (8), row 1 the same 6 at every shift: 8 + 6,
+  // the same as one shift.
   EXPECT_FLOAT_EQ(1.75f, arl::ImageDifference(6, 2, 0, 1, false, 2).compare(kTinyQuery, kTinyKeyframe).cost);
   EXPECT_THROW(arl::ImageDifference(8, 2, 0, 1, false, 0), std::invalid_argument);
   EXPECT_THROW(arl::ImageDifference(8, 2, 0, 1, false, 3), std::invalid_argument);  // more bands than rows

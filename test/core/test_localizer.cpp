@@ -142,6 +142,53 @@ TEST(Localizer, RejectsEmptyMapInvalidParamsAndBadFrames)
   EXPECT_THROW(localizer.setParams(bad), std::invalid_argument);
 }
 
+TEST(Localizer, ShiftBandsRunThroughTheLocalizerAndTooManyAreRefused)
+{
+  // The top 60 % of the rows are sky: 32 - 19 = 13 rows compared. 14 bands (in the table's range, 1-16) are
+  // refused before anything changes, and the old parameters stay.
+  arl::PreprocessingParams sky;
+  sky.sky_fraction = 0.6;
+  ASSERT_EQ(19, sky.skyRows());
+  const auto sky_map = std::make_shared<arl::RouteMap>(sky);
+  for (int k = 0; k < 20; ++k)
+    sky_map->addKeyframe(randomFrame(1000 + k), 1000000000LL * k);
+  arl::Localizer under_sky(sky_map, arl::LocalizerParams());
+  arl::LocalizerParams too_many;
+  too_many.shift_bands = 14;
+  try
+  {
+    under_sky.setParams(too_many);
+    ADD_FAILURE() << "14 bands of 13 rows were taken";
+  }
+  catch (const std::invalid_argument& e)
+  {
+    EXPECT_NE(std::string::npos, std::string(e.what()).find("shift_bands must be at most the compared rows (13), got 14"))
+        << e.what();
+  }
+  EXPECT_EQ(1, under_sky.params().shift_bands);
+  too_many.shift_bands = 13;  // a band per row
+  under_sky.setParams(too_many);
+  EXPECT_EQ(13, under_sky.params().shift_bands);
+
+  const auto map = syntheticMap(40);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  // Two bands: each query's upper half is its keyframe's moved right by 3 px, its lower half moved left by
+  // 3 (parallax); every answer is the query's own keyframe, tracking from the known start.
+  arl::LocalizerParams two;
+  two.shift_bands = 2;
+  localizer.setParams(two);
+  EXPECT_EQ(2, localizer.params().shift_bands);
+  for (int i = 0; i < 30; ++i)
+  {
+    const cv::Mat keyframe = keyframeCopy(*map, i);
+    cv::Mat query = shiftedRight(keyframe, 3);
+    shiftedRight(keyframe, -3).rowRange(16, 32).copyTo(query.rowRange(16, 32));
+    const arl::LocalizationResult r = localizer.process(query);
+    EXPECT_EQ(LocalizationStatus::kTracking, r.status) << "frame " << i;
+    EXPECT_EQ(i, r.keyframe) << "frame " << i;
+  }
+}
+
 TEST(LocalizerParams, ValidateNamesInvalidValues)
 {
   EXPECT_EQ("", arl::LocalizerParams().validate());
