@@ -369,11 +369,18 @@ ShiftedDifference pickBestShift(const uint32_t* cost, int max_shift_px, int comp
   return result;
 }
 
-/// Step 2 with the compared rows in `bands` horizontal bands, each at its own best shift (ImageDifference).
-ShiftedDifference bandedDifference(const Strip& strip, int bands, const uint8_t* query, const uint8_t* keyframe,
-                                   int compared_pixels, bool subpixel, const uint8_t* next = nullptr)
+/// Step 2 for one keyframe: the strip at its best shift, or with `bands` > 1 the compared rows in that many
+/// horizontal bands, each at its own best shift (ImageDifference). `next`: the keyframe compared after this one.
+ShiftedDifference stripDifference(const Strip& strip, int bands, const uint8_t* query, const uint8_t* keyframe,
+                                  int compared_pixels, bool subpixel, const uint8_t* next = nullptr)
 {
   const int m = strip.max_shift, shifts = 2 * m + 1, rows = strip.height - strip.first_row;
+  if (bands == 1)
+  {
+    uint32_t sad[256];
+    strip.sads(query, keyframe, -m, shifts, sad, next);
+    return pickBestShift(sad, m, compared_pixels, subpixel);
+  }
   uint32_t whole[256] = {};
   uint64_t best_sum = 0;
   for (int b = 0; b < bands; ++b)
@@ -418,12 +425,8 @@ uint32_t ImageDifference::sadAtShift(const uint8_t* query, const uint8_t* keyfra
 
 ShiftedDifference ImageDifference::compare(const uint8_t* query, const uint8_t* keyframe) const
 {
-  if (bands_ > 1)
-    return bandedDifference(Strip{ width_, first_row_, height_, max_shift_px_ }, bands_, query, keyframe,
-                            comparedPixels(), subpixel_);
-  uint32_t sad[256];
-  Strip{ width_, first_row_, height_, max_shift_px_ }.sads(query, keyframe, -max_shift_px_, 2 * max_shift_px_ + 1, sad);
-  return pickBestShift(sad, max_shift_px_, comparedPixels(), subpixel_);
+  return stripDifference(Strip{ width_, first_row_, height_, max_shift_px_ }, bands_, query, keyframe,
+                         comparedPixels(), subpixel_);
 }
 
 namespace
@@ -443,20 +446,11 @@ public:
   void operator()(const cv::Range& range) const override
   {
     const size_t bytes = static_cast<size_t>(strip_.width) * strip_.height;
-    const int m = strip_.max_shift;
-    uint32_t sad[256];
     for (int k = range.start; k < range.end; ++k)
     {
       const uint8_t* keyframe = keyframes_ + k * bytes;
-      const uint8_t* next = k + 1 < range.end ? keyframe + bytes : nullptr;
-      ShiftedDifference d;
-      if (bands_ > 1)
-        d = bandedDifference(strip_, bands_, query_, keyframe, compared_pixels_, subpixel_, next);
-      else
-      {
-        strip_.sads(query_, keyframe, -m, 2 * m + 1, sad, next);
-        d = pickBestShift(sad, m, compared_pixels_, subpixel_);
-      }
+      const ShiftedDifference d = stripDifference(strip_, bands_, query_, keyframe, compared_pixels_, subpixel_,
+                                                  k + 1 < range.end ? keyframe + bytes : nullptr);
       costs_[k] = d.cost;
       shifts_[k] = d.shift_px;
     }

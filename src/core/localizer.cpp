@@ -202,9 +202,10 @@ void Localizer::setParams(const LocalizerParams& params)
   if (invalid.empty() && params.start_keyframe >= static_cast<int>(map_->size()))
     invalid = "start_keyframe must be below the map's " + std::to_string(map_->size()) + " keyframes, got " +
               std::to_string(params.start_keyframe) + " (-1: unknown, search the whole map)";
-  if (invalid.empty() && params.shift_bands > map_->height() - firstComparedRow())
-    invalid = "shift_bands must be at most the compared rows (" + std::to_string(map_->height() - firstComparedRow()) +
-              "), got " + std::to_string(params.shift_bands);
+  const int compared_rows = map_->height() - firstComparedRow();
+  if (invalid.empty() && params.shift_bands > compared_rows)
+    invalid = "shift_bands must be at most the compared rows (" + std::to_string(compared_rows) + "), got " +
+              std::to_string(params.shift_bands);
   if (!invalid.empty())
     throw std::invalid_argument("invalid localizer parameters: " + invalid);
   const bool comparators_changed = !difference_ || params.max_shift_px != params_.max_shift_px ||

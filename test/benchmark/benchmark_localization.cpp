@@ -272,12 +272,10 @@ BENCHMARK(BM_MemoryRead)->Apply(mapSizeParallelArgs)->UseRealTime()->Unit(benchm
 // ------------------------------------------------------------------------------------------------
 // Step 2: SAD with a +-4 px shift search of one query against every keyframe of the map.
 
-void BM_SadCompareMany(benchmark::State& state)
+/// One query (the route's frame n / 2) against the n keyframes of a route map, each iteration.
+void runCompareMany(benchmark::State& state, int n, const arl::ImageDifference& difference, bool parallel)
 {
-  const int n = static_cast<int>(state.range(0));
-  const bool parallel = state.range(1) != 0;
   const auto map = routeMap(n);
-  const arl::ImageDifference difference(kWidth, kHeight, 0, kMaxShiftPx, true);
   QueryStream stream(n / 2);
   cv::Mat query;
   stream.next(query);
@@ -290,27 +288,20 @@ void BM_SadCompareMany(benchmark::State& state)
   }
   state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(map->keyframeBytes()) * n);
 }
+
+void BM_SadCompareMany(benchmark::State& state)
+{
+  runCompareMany(state, static_cast<int>(state.range(0)), arl::ImageDifference(kWidth, kHeight, 0, kMaxShiftPx, true),
+                 state.range(1) != 0);
+}
 BENCHMARK(BM_SadCompareMany)->Apply(mapSizeParallelArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
 
 // The tracking band (81 keyframes, one thread) with the compared rows in 1 or 2 bands (shift_bands): the
 // same bytes, the shift search run per band.
 void BM_SadCompareBand(benchmark::State& state)
 {
-  const int bands = static_cast<int>(state.range(0));
-  const int n = 81;
-  const auto map = routeMap(n);
-  const arl::ImageDifference difference(kWidth, kHeight, 0, kMaxShiftPx, true, bands);
-  QueryStream stream(n / 2);
-  cv::Mat query;
-  stream.next(query);
-  std::vector<float> costs(n), shifts(n);
-  for (auto _ : state)
-  {
-    difference.compareMany(query.data, map->data(), n, costs.data(), shifts.data(), false);
-    benchmark::DoNotOptimize(costs.data());
-    benchmark::ClobberMemory();
-  }
-  state.SetBytesProcessed(static_cast<int64_t>(state.iterations()) * static_cast<int64_t>(map->keyframeBytes()) * n);
+  runCompareMany(state, 81,
+                 arl::ImageDifference(kWidth, kHeight, 0, kMaxShiftPx, true, static_cast<int>(state.range(0))), false);
 }
 BENCHMARK(BM_SadCompareBand)->ArgNames({ "shift_bands" })->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
 
