@@ -45,11 +45,19 @@ class UnicycleTest(unittest.TestCase):
         self.assertAlmostEqual(robot.y, 2 / math.pi)
         self.assertAlmostEqual(robot.yaw, math.pi / 2)
 
-    def test_turn_rate_bias_turns_a_robot_told_to_stand(self):
+    def test_turn_rate_bias_turns_a_driven_robot_only(self):
         robot = simulator.Unicycle(1.0, 2.0, 0.0, turn_bias_rps=0.1)
-        robot.step(0.0, 0.0, 2.0)
-        self.assertAlmostEqual(robot.yaw, 0.2)
+        robot.step(0.0, 0.0, 2.0)  # told to stand: the base holds still
+        self.assertEqual((robot.x, robot.y, robot.yaw), (1.0, 2.0, 0.0))
+        robot.step(0.0, 0.05, 2.0)  # turning on the spot at 0.05 rad/s: 0.15 rad/s for 2 s
+        self.assertAlmostEqual(robot.yaw, 0.3)
         self.assertEqual((robot.x, robot.y), (1.0, 2.0))
+        # driving straight at 1 m/s for 1 s: an arc turning 0.1 rad, radius 10 m: x += 10 sin 0.1, y += 10 (1 - cos 0.1)
+        robot = simulator.Unicycle(0.0, 0.0, 0.0, turn_bias_rps=0.1)
+        robot.step(1.0, 0.0, 1.0)
+        self.assertAlmostEqual(robot.yaw, 0.1)
+        self.assertAlmostEqual(robot.x, 10.0 * math.sin(0.1))
+        self.assertAlmostEqual(robot.y, 10.0 * (1.0 - math.cos(0.1)))
 
     def test_yaw_stays_wrapped(self):
         robot = simulator.Unicycle(0.0, 0.0, 3.0)
