@@ -62,4 +62,38 @@ std::string joined(const std::set<std::string>& names)
   return text;
 }
 
+std::string motionTypeName(MotionType type)
+{
+  switch (type)
+  {
+    case MotionType::kTwist:
+      return "twist";
+    case MotionType::kOdometry:
+      return "odometry";
+    case MotionType::kNone:
+      break;
+  }
+  return "none";
+}
+
+MotionType readMotionType(const ros::NodeHandle& private_nh, MotionType fallback, std::string* problem)
+{
+  problem->clear();
+  XmlRpc::XmlRpcValue value;
+  if (!private_nh.getParam("motion_type", value))
+    return fallback;
+  const std::string using_fallback = "; using " + motionTypeName(fallback);
+  if (value.getType() != XmlRpc::XmlRpcValue::TypeString)
+  {
+    *problem = "~motion_type = " + value.toXml() + " is not a string" + using_fallback;
+    return fallback;
+  }
+  const std::string text = static_cast<std::string>(value);
+  for (const MotionType type : { MotionType::kNone, MotionType::kTwist, MotionType::kOdometry })
+    if (text == motionTypeName(type))
+      return type;
+  *problem = "~motion_type '" + text + "' is not one of none | twist | odometry" + using_fallback;
+  return fallback;
+}
+
 }  // namespace along_route_localization

@@ -81,6 +81,23 @@ std::string unreadSentence(const std::string& name, const std::string& who, cons
 /// "a, b, c".
 std::string joined(const std::set<std::string>& names);
 
+/// What a nodelet reads the robot's velocity from, on its topic `motion` (~motion_type): nothing, a
+/// geometry_msgs/Twist (e.g. the robot's cmd_vel) or a nav_msgs/Odometry (its twist, and its poses).
+enum class MotionType
+{
+  kNone,
+  kTwist,
+  kOdometry
+};
+
+/// "none", "twist" or "odometry": the values ~motion_type takes.
+std::string motionTypeName(MotionType type);
+
+/// ~motion_type as set under private_nh; `fallback` when unset. A value that is not one of
+/// none | twist | odometry (or not a string) gives `fallback`, and *problem the sentence for the log
+/// ("~motion_type 'cmd_vel' is not one of none | twist | odometry; using twist"); else *problem is empty.
+MotionType readMotionType(const ros::NodeHandle& private_nh, MotionType fallback, std::string* problem);
+
 }  // namespace along_route_localization
 
 #endif  // ALONG_ROUTE_LOCALIZATION_GLUE_PRIVATE_PARAMETERS_H

@@ -336,19 +336,17 @@ void LocalizerNodelet::onInit()
   const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh);
   image_sub_ = it_->subscribe("image_preprocessed", 1, &LocalizerNodelet::imageCb, this, hints);
   // The same single-threaded queue as the images: the detector needs no lock.
-  std::string motion_type = "none";
-  private_nh.param("motion_type", motion_type, motion_type);
-  if (motion_type == "twist")
+  std::string problem;
+  const MotionType motion_type = readMotionType(private_nh, MotionType::kNone, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s: the images alone tell whether the robot stood still", problem.c_str());
+  if (motion_type == MotionType::kTwist)
     motion_sub_ = nh.subscribe("motion", 100, &LocalizerNodelet::motionTwistCb, this);
-  else if (motion_type == "odometry")
+  else if (motion_type == MotionType::kOdometry)
     motion_sub_ = nh.subscribe("motion", 100, &LocalizerNodelet::motionOdomCb, this);
-  else if (motion_type != "none")
-    NODELET_ERROR("~motion_type must be none, twist or odometry ('%s'); using none: the images alone tell "
-                  "whether the robot stood still",
-                  motion_type.c_str());
   if (motion_sub_)
     NODELET_INFO("Whether the robot stood still between frames: from %s (%s)", motion_sub_.getTopic().c_str(),
-                 motion_type.c_str());
+                 motionTypeName(motion_type).c_str());
   NODELET_INFO("Localizing %s against %s; preprocessing parameters checked against %s",
                nh.resolveName("image_preprocessed").c_str(), map_ ? map_path_.c_str() : "(no map yet)",
                params_topic.c_str());

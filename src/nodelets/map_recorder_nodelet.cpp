@@ -4,8 +4,8 @@
 //             <namespace of image_preprocessed>/preprocessing_params (latched, from the preprocessor):
 //             stored in the map, so the map records exactly what made its keyframes
 //             odom (nav_msgs/Odometry, optional: only the min_distance policy reads it)
-//             motion (optional; geometry_msgs/Twist, or nav_msgs/Odometry with ~motion_type odometry): the
-//             taught motion stored with each keyframe on the map's topic "motion" (KeyframeMotion.msg):
+//             motion (optional; geometry_msgs/Twist, or nav_msgs/Odometry with ~motion_type odometry; none:
+//             not read): the taught motion stored with each keyframe on the map's topic "motion" (KeyframeMotion.msg):
 //             the mean velocity of the messages since the previous keyframe (the latest when none came),
 //             the distance since the previous keyframe (twist: |linear.x| integrated over receipt times,
 //             each held at most 1 s; odometry: the path of the poses). Keyframes taken before the first
@@ -14,7 +14,8 @@
 //             recorded and why the last one was not)
 // Services:   ~start (refused, with the reason, when the map could not be written), ~pause, ~finish
 //             (std_srvs/Trigger; says how many frames seen while recording were not recorded, and why)
-// Parameters: ~map (absolute path of the map file), ~autostart (true), ~flush_period (1.0 s), ~motion_type (twist),
+// Parameters: ~map (absolute path of the map file), ~autostart (true), ~flush_period (1.0 s),
+//             ~motion_type (twist | odometry | none; twist),
 //             ~max_queue (1000 keyframes waiting for the writer), ~queue_size (100);
 //             keyframe policy in cfg/MapRecorder.cfg (dynamic)
 //
@@ -239,16 +240,13 @@ void MapRecorderNodelet::onInit()
   const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
   params_sub_ = nh.subscribe(params_topic, 1, &MapRecorderNodelet::paramsCb, this);
   odom_sub_ = nh.subscribe("odom", 10, &MapRecorderNodelet::odomCb, this);
-  std::string motion_type = "twist";
-  private_nh.param("motion_type", motion_type, motion_type);
-  if (motion_type != "twist" && motion_type != "odometry")
-  {
-    NODELET_ERROR("~motion_type must be twist or odometry ('%s'); using twist", motion_type.c_str());
-    motion_type = "twist";
-  }
-  if (motion_type == "twist")
+  std::string problem;
+  const MotionType motion_type = readMotionType(private_nh, MotionType::kTwist, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
+  if (motion_type == MotionType::kTwist)
     motion_sub_ = nh.subscribe("motion", 100, &MapRecorderNodelet::motionTwistCb, this);
-  else
+  else if (motion_type == MotionType::kOdometry)
     motion_sub_ = nh.subscribe("motion", 100, &MapRecorderNodelet::motionOdomCb, this);
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
   const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh);

@@ -142,11 +142,14 @@ class RobustnessTest(unittest.TestCase):
         name = '/repeat/second_recorder'
         path = os.path.join(self.tmp, 'second_map.bag')
         rospy.set_param(name + '/map', path)
+        rospy.set_param(name + '/motion_type', 'cmd_vel')  # a topic's name for its type: said, twist used
         loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
             name, 'along_route_localization/map_recorder', [], [], [], '')
         self.assertTrue(loaded.success)
         status, suffix = self.diagnostics.next_status, 'repeat/second_recorder: recording'
         try:
+            text = "~motion_type 'cmd_vel' is not one of none | twist | odometry; using twist"
+            fx.wait_for(lambda: self.rosout.matching(text, Log.ERROR), 10, 'a message starting %r' % text)
             fx.wait_for(lambda: self.direct.get_num_connections() > 1, 10, 'the recorder to subscribe')
             waiting = status(suffix, lambda s: True, 'the recorder to report')
             self.assertEqual((waiting.level, waiting.message), (DiagnosticStatus.WARN,
@@ -342,9 +345,11 @@ class RobustnessTest(unittest.TestCase):
             'max_step': 0,
             'ring_bufer_rows': 10,
             'normalization_strength': 0.2,
+            'motion_type': 'odom',
         }, '/repeat/checked_localization')
         try:
             for text in ('~exclusion_radius -1 is outside 1 .. 1000000 keyframes; using 1',
+                         "~motion_type 'odom' is not one of none | twist | odometry; using none: the images alone",
                          "~cost_function 'SAD' is not one of sad | census; keeping sad",
                          'max_step 0 is outside 1 .. 16 keyframes per frame; using 1',
                          '~ring_bufer_rows is not a parameter of the localizer and is ignored (did you mean '
