@@ -481,6 +481,10 @@ private:
   /// The rows weighed: the newest `window` recent queries' whole-map rows, kept in `ring` (coasting: K rows in
   /// check_ring_; recentCheck: relocalization_rows rows in recent_ring_).
   bool trackContradicted(int track_keyframe, int new_rows, int window, CostRingBuffer* ring);
+  /// The keyframes a robot that only moves as it drives (detect_kidnapping false) can be at `frames` frames
+  /// after the images placed it at `anchor` (a lost track's last answer; coasting: the last confident one):
+  /// [*first, *first + *width). The ends of the match after a loss and of the checks while coasting.
+  void reachableEnds(double anchor, int64_t frames, int* first, int* width) const;
   /// How much cheaper per row, by chance, the best path at a wrong place of this map is than a stretch of
   /// track-sized ends at another wrong place, over `rows` rows: measured once per map and parameters on
   /// kChanceWindows stretches of the map's own keyframes taken as queries, their true places left out (the

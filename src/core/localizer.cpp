@@ -709,18 +709,23 @@ Localizer::Frame Localizer::beginFrame(const uint8_t* query, float energy)
   if (state_ == State::kLost && !params_.detect_kidnapping && params_.method == SequenceMethod::kOnlineDtw &&
       lost_anchor_ >= 0.0)
   {
-    // A robot that only moves as it drives (detect_kidnapping false) is, after a loss, where it could have
-    // driven since: from search_radius keyframes behind the lost track (which may have run ahead of it) to
-    // max_step keyframes a frame ahead. The rows still cover the whole map; only the match ends there, and
-    // only paths there compete (a look-alike far along the route was confirmed and driven to: issue 31,
-    // the lens covered for 10 s, seed 3).
-    const int64_t since = static_cast<int64_t>(frames_) - lost_frame_;
-    const int64_t anchor = std::llround(lost_anchor_);
-    const int64_t last = std::min<int64_t>(n - 1, anchor + params_.search_radius + params_.dtw.max_step * since);
-    frame.reach_first = static_cast<int>(std::max<int64_t>(0, std::min<int64_t>(last, anchor - params_.search_radius)));
-    frame.reach_width = static_cast<int>(last) - frame.reach_first + 1;
+    // After a loss the robot is where it could have driven since (the rows still cover the whole map; only
+    // the match ends there, and only paths there compete): a look-alike far along the route was confirmed
+    // and driven to (issue 31, the lens covered for 10 s, seed 3).
+    reachableEnds(lost_anchor_, static_cast<int64_t>(frames_) - lost_frame_, &frame.reach_first, &frame.reach_width);
   }
   return frame;
+}
+
+void Localizer::reachableEnds(double anchor, int64_t frames, int* first, int* width) const
+{
+  // From search_radius keyframes behind where the images last placed the robot (the track may have run
+  // ahead of it) to max_step keyframes a frame ahead of it.
+  const int n = static_cast<int>(map_->size());
+  const int64_t at = std::llround(anchor);
+  const int64_t last = std::min<int64_t>(n - 1, at + params_.search_radius + params_.dtw.max_step * frames);
+  *first = static_cast<int>(std::max<int64_t>(0, std::min<int64_t>(last, at - params_.search_radius)));
+  *width = static_cast<int>(last) - *first + 1;
 }
 
 void Localizer::appendRow(const Frame& frame)
@@ -862,8 +867,10 @@ void Localizer::trackStep(Frame* frame, SequenceMatch* match, bool confident)
   if (loss_.update(confident, frame->informative && !frame->repeated))  // new views only
   {
     // A track that no evidence has established (no confident answer yet, or a known start still under
-    // its check: only assumed, dead-reckoned through the first frames) has nothing to coast on: lost.
-    if (!params_.loss_needs_contradiction || last_confident_ < 0 || frame->checking_start)
+    // its check: only assumed, dead-reckoned through the first frames) has nothing to coast on: lost. A
+    // robot that only moves as it drives (detect_kidnapping false) did start there: its start is a fact.
+    const bool start_assumed = frame->checking_start && params_.detect_kidnapping;
+    if (!params_.loss_needs_contradiction || last_confident_ < 0 || start_assumed)
       loseTrack(match->keyframe);
     else if (state_ == State::kTracking)
     {
@@ -1136,7 +1143,12 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
     replayRecentQueries(std::min(recent_count_, window), ring);
   }
   const int rows = ring->size();
-  const SequenceMatch elsewhere = dtw_.match(*ring, 0, n, rows, false, map_stats_.run.data());
+  // A robot that only moves as it drives (detect_kidnapping false; coasting: the newest rows' check is
+  // off) is contradicted only by a place it could have driven to since the last confident answer.
+  int first = 0, width = n;
+  if (!params_.detect_kidnapping && last_confident_ >= 0)
+    reachableEnds(last_confident_, frames_since_confident_, &first, &width);
+  const SequenceMatch elsewhere = dtw_.match(*ring, first, width, rows, false, map_stats_.run.data());
   contradicting_place_ = elsewhere.keyframe;
   if (elsewhere.keyframe < 0 ||
       std::abs(map_stats_.run[elsewhere.keyframe] - map_stats_.run[track_keyframe]) <= params_.dtw.exclusion_radius)
@@ -1152,12 +1164,12 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   if (!params_.contradiction_chance_margin)
     return true;
   // The track's own end over the same rows, as the track may choose it.
-  const std::vector<float>& accumulated = dtw_.lastAccumulated();
-  const int lo = std::max(0, track_keyframe - params_.dtw.exclusion_radius);
-  const int hi = std::min(n - 1, track_keyframe + params_.dtw.max_step + params_.max_jump_ahead);
+  const std::vector<float>& accumulated = dtw_.lastAccumulated();  // [k - first]
+  const int lo = std::max(first, track_keyframe - params_.dtw.exclusion_radius);
+  const int hi = std::min(first + width - 1, track_keyframe + params_.dtw.max_step + params_.max_jump_ahead);
   float track_cost = std::numeric_limits<float>::infinity();
   for (int k = lo; k <= hi; ++k)
-    track_cost = std::min(track_cost, accumulated[k]);
+    track_cost = std::min(track_cost, accumulated[k - first]);
   // Better than the track by more than a wrong stretch of this map is by chance (chanceMargin; it uses
   // the DTW too, so it comes after this check's own costs were read).
   const float margin = track_cost - elsewhere.cost;
