@@ -119,6 +119,19 @@ class LaunchFileTest(unittest.TestCase):
         self.assertIn('/localizer/map: /maps/route.bag', params)
         self.assertIn('/route_follower/autostart: true', params)
 
+    def test_follow_coasts_on_weak_evidence_and_repeat_keeps_the_params_file(self):
+        # follow.launch: low confidence alone does not make the closed loop's track lost (a lost robot stops,
+        # and standing still it shows no new view to be found by); its argument overrides the params file.
+        # repeat.launch leaves the value to the params file (else the localizer's default, false).
+        follow = os.path.join(LAUNCH_DIR, 'follow.launch')
+        repeat = os.path.join(LAUNCH_DIR, 'repeat.launch')
+        self.assertIn('/localizer/loss_needs_contradiction: true', roslaunch('--dump-params', follow))
+        self.assertIn('/localizer/loss_needs_contradiction: false',
+                      roslaunch('--dump-params', follow, 'loss_needs_contradiction:=false'))
+        self.assertNotIn('loss_needs_contradiction', roslaunch('--dump-params', repeat))
+        self.assertIn('/localizer/loss_needs_contradiction: true',
+                      roslaunch('--dump-params', repeat, 'loss_needs_contradiction:=true'))
+
 
 def package_found():
     rospack = shutil.which('rospack', path='/usr/bin:' + os.environ.get('PATH', ''))

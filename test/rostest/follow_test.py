@@ -294,6 +294,8 @@ class FollowTest(unittest.TestCase):
         # follow.launch: the robot repeats its route from the taught start and only moves as it drives, so
         # the localizer's checks for a robot carried elsewhere are off (detect_kidnapping false, a bool).
         self.assertIs(rospy.get_param('/follow/localizer/detect_kidnapping'), False)
+        # and low confidence alone does not make it lost (loss_needs_contradiction true, a bool).
+        self.assertIs(rospy.get_param('/follow/localizer/loss_needs_contradiction'), True)
 
 
 if __name__ == '__main__':
