@@ -2350,6 +2350,25 @@ TEST(LocalizerStates, WithLossNeedsContradictionATrackDeadReckonedPastTheRouteEn
   EXPECT_EQ(std::string(marks.size() - at_end - 2, 'l'), marks.substr(at_end + 2));
 }
 
+namespace
+{
+// From start_keyframe 0 of a 200-keyframe map: keyframes 0, 1, ..., frames_from_start - 1 (each answered
+// there), then 20 frames of places the map does not hold; *marks gets their statuses (l lost, t tracking,
+// coasting included).
+void statusesAfterTheStart(const arl::LocalizerParams& params, int frames_from_start, std::string* marks)
+{
+  const auto map = syntheticMap(200);
+  arl::Localizer localizer(map, params);
+  for (int i = 0; i < frames_from_start; ++i)
+    ASSERT_EQ(i, localizer.process(keyframeCopy(*map, i)).keyframe);
+  marks->clear();
+  for (int j = 0; j < 20; ++j)
+    *marks += localizer.process(randomFrame(63000 + j)).status == LocalizationStatus::kLost ? 'l' : 't';
+  std::printf("detect_kidnapping %d, %d frames from the start, then 20 from nowhere: %s\n", params.detect_kidnapping,
+              frames_from_start, marks->c_str());
+}
+}  // namespace
+
 TEST(LocalizerStates, WithLossNeedsContradictionAKnownStartStillUnderItsCheckIsLostNotCoasted)
 {
   // loss_needs_contradiction, start_keyframe 0 (K = 30): the first frames are keyframes 0, 1, ..., then
@@ -2358,18 +2377,12 @@ TEST(LocalizerStates, WithLossNeedsContradictionAKnownStartStillUnderItsCheckIsL
   // start established, not a window of evidence, has nothing to coast on, so it is lost, as with the old
   // rule (the frames from there on). After 60 frames the track is established: the same frames make it
   // coast (no check finds another place for noise), never lost.
-  const auto map = syntheticMap(200);
   arl::LocalizerParams params;
   params.loss_needs_contradiction = true;
   for (const int frames_from_start : { 6, 60 })
   {
-    arl::Localizer localizer(map, params);
-    for (int i = 0; i < frames_from_start; ++i)
-      ASSERT_EQ(i, localizer.process(keyframeCopy(*map, i)).keyframe);
-    std::string marks;  // l lost, t tracking (coasting)
-    for (int j = 0; j < 20; ++j)
-      marks += localizer.process(randomFrame(63000 + j)).status == LocalizationStatus::kLost ? 'l' : 't';
-    std::printf("%d frames from the start, then 20 from nowhere: %s\n", frames_from_start, marks.c_str());
+    std::string marks;
+    ASSERT_NO_FATAL_FAILURE(statusesAfterTheStart(params, frames_from_start, &marks));
     if (frames_from_start < params.ring_buffer_rows)
     {
       const size_t lost = marks.find('l');
@@ -2388,17 +2401,11 @@ TEST(LocalizerStates, WithoutKidnappingAKnownStartIsGivenAndCoastsOnWeakEvidence
   // hypothesis under check, so weak evidence right after it coasts as it does later, never lost (issue 31:
   // a robot 1 m beside its start, turning onto the route, was lost on its 18th frame, its follower crept
   // and stopped, and a robot standing still shows no new view to be found again by).
-  const auto map = syntheticMap(200);
   arl::LocalizerParams params;
   params.loss_needs_contradiction = true;
   params.detect_kidnapping = false;
-  arl::Localizer localizer(map, params);
-  for (int i = 0; i < 6; ++i)
-    ASSERT_EQ(i, localizer.process(keyframeCopy(*map, i)).keyframe);
-  std::string marks;  // l lost, t tracking (coasting)
-  for (int j = 0; j < 20; ++j)
-    marks += localizer.process(randomFrame(63000 + j)).status == LocalizationStatus::kLost ? 'l' : 't';
-  std::printf("detect_kidnapping false, 6 frames from the start, then 20 from nowhere: %s\n", marks.c_str());
+  std::string marks;
+  ASSERT_NO_FATAL_FAILURE(statusesAfterTheStart(params, 6, &marks));
   EXPECT_EQ(std::string(20, 't'), marks);
 }
 
