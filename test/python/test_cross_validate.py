@@ -1,13 +1,15 @@
 """scripts/cross_validate and the scenarios and calibration it rests on: hand-worked examples."""
 
 import os
+import re
+import subprocess
 import sys
 import unittest
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # finds scripts_under_test
-from scripts_under_test import load
+from scripts_under_test import built_executable, load
 
 cross_validate = load("cross_validate")
 scenarios = load("make_nordland_scenarios")
@@ -111,6 +113,27 @@ class SelectionTest(unittest.TestCase):
             cross_validate.parse_candidates("a: x=1\na: y=2\n")
         with self.assertRaises(ValueError):
             cross_validate.parse_candidates("a: novalue\n")
+
+    @unittest.skipIf(built_executable("localize_offline") is None, "localize_offline not built (source the workspace)")
+    def test_the_shipped_core_parameter_candidates_are_parameters_in_range(self):
+        # doc/cv_core_parameters.txt, the grid doc/results.md reports: every name one localize_offline takes,
+        # every value inside its range (a misspelt name or a value out of range would be refused or
+        # corrected by the runs, and the figures would be those of another grid).
+        path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "doc", "cv_core_parameters.txt")
+        with open(path) as f:
+            candidates = cross_validate.parse_candidates(f.read())
+        self.assertEqual(len(candidates), 18)
+        help_text = subprocess.run([built_executable("localize_offline"), "--help-advanced"], stdout=subprocess.PIPE,
+                                   stderr=subprocess.STDOUT, universal_newlines=True).stdout
+        ranges = {m.group(1): (float(m.group(2)), float(m.group(3))) for m in
+                  re.finditer(r"^    ([a-z_]+) = \S+  \(([-0-9.e]+) \.\. ([-0-9.e]+)", help_text, re.M)}
+        self.assertIn("filter_window", ranges)
+        for name, assignments in candidates[1:]:
+            for assignment in assignments:
+                key, value = assignment.split("=", 1)
+                self.assertTrue(key in ranges, "%s: %s is not a parameter" % (name, key))
+                self.assertTrue(ranges[key][0] <= float(value) <= ranges[key][1],
+                                "%s: %s is out of range" % (name, assignment))
 
 
 if __name__ == "__main__":
