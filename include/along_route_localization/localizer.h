@@ -153,8 +153,8 @@ struct LocalizerParams
   /// (calibratedConfidence; a logistic fit, Platt scaling). scripts/cross_validate fits both on real
   /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
   /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. Both dimensionless.
-  float calibration_offset = 0.626f;
-  float calibration_slope = 8.212f;
+  float calibration_offset = 0.682f;
+  float calibration_slope = 8.079f;
   /// Lost (global search again) when lost_after_frames of the last lost_window_frames informative
   /// frames were low-confidence (LossDetector). Featureless frames do not count, nor do copies of the
   /// last view (the camera standing still): they bring no evidence of another place, and a long stop at
@@ -586,6 +586,7 @@ private:
   int recent_count_ = 0, recent_next_ = 0;
   CostRingBuffer recent_ring_;             // recentCheck's whole-map rows of the newest queries
   bool recent_checking_ = false;           // the last new view was checked against the whole map
+  bool recent_contradicted_ = false;       // and that check found the track contradicted
   int recent_unanswered_ = 0;              // checks in a row that found no place elsewhere
   int recent_pending_ = 0;                 // frames since the check's last row (featureless, repeated, missed)
   int check_pending_ = 0;                  // missed frames since the coasting check's last row

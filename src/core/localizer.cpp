@@ -901,7 +901,10 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
     // No new view to weigh. A check under way takes this frame's row (neutral when featureless) with the
     // next new view's, so that its rows stay those of consecutive frames.
     if (recent_checking_)
+    {
       ++recent_pending_;
+      frame->contradicted = recent_contradicted_;  // no new view, no new evidence: the last verdict stands
+    }
     return;
   }
   // Do the newest rows alone support the track's end? The whole window may still, for K / 2 frames after
@@ -931,6 +934,7 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   frame->contradicted =
       trackContradicted(match->keyframe, recent_checking_ ? 1 + recent_pending_ : 0, check_window, &recent_ring_);
   recent_checking_ = true;
+  recent_contradicted_ = frame->contradicted;
   recent_pending_ = 0;
   recent_unanswered_ = frame->contradicted ? 0 : recent_unanswered_ + 1;
   moveTrackOnConfirmation(&recent_confirmation_, true, recent_ring_, frame, match);

@@ -2103,6 +2103,48 @@ std::vector<QueryFrame> offRouteQueries()
   return queries;
 }
 
+TEST(Localizer, ACarriedRobotThatStandsStillStaysContradicted)
+{
+  // Tracked along keyframes 0..59, the robot is carried to keyframe 150 and shows 150..156: the check of the
+  // newest frames finds the track contradicted (published lost), and init_confirm_frames (5) checks must
+  // agree before the track moves. Then the robot stands at 156 for 20 frames: copies of one view, no new
+  // evidence either way, so the last verdict stands: every one is published lost, confidence 0, where it
+  // was published tracking the old place before (Nordland's kidnapped fold 2: 40 frames in a station).
+  // Once it drives on (157..) the checks confirm the new place and the track moves there.
+  const auto map = syntheticMap(200);
+  std::vector<int> keyframes;
+  for (int k = 0; k < 60; ++k)
+    keyframes.push_back(k);
+  for (int k = 150; k <= 156; ++k)
+    keyframes.push_back(k);
+  const size_t stand_from = keyframes.size();
+  keyframes.insert(keyframes.end(), 20, 156);
+  const size_t drive_from = keyframes.size();
+  for (int k = 157; k <= 190; ++k)
+    keyframes.push_back(k);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  std::string marks;
+  for (size_t i = 0; i < keyframes.size(); ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, keyframes[i]));
+    const bool right = std::abs(result.keyframe - keyframes[i]) <= 1;
+    marks += result.status == LocalizationStatus::kLost ? (right ? 'l' : 'L') : (right ? '.' : 'x');
+    if (result.status == LocalizationStatus::kLost)
+    {
+      EXPECT_EQ(0.0, result.confidence) << "frame " << i;
+    }
+  }
+  std::printf("carried to 150 at frame 60, standing at 156 from frame %zu, driving on from %zu: %s\n", stand_from,
+              drive_from, marks.c_str());
+  // measured: right to frame 59; 60-65 the old place; 66 contradicted; standing: lost (before: the old place,
+  // tracking); the first 3 new views after it the old place again, then lost, tracking it from frame 95
+  EXPECT_EQ(std::string(60, '.'), marks.substr(0, 60));
+  const std::string before_standing = marks.substr(60, stand_from - 60);
+  ASSERT_NE(std::string::npos, before_standing.find_first_of("Ll")) << "no contradiction before the robot stopped";
+  EXPECT_EQ(std::string(drive_from - stand_from, 'L'), marks.substr(stand_from, drive_from - stand_from));
+  EXPECT_EQ(std::string(20, '.'), marks.substr(marks.size() - 20));
+}
+
 TEST(Localizer, CarriedFromTheRouteEndTheGrowingCheckFindsTheRobot)
 {
   SKIP_WITHOUT_NORDLAND();
