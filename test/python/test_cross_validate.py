@@ -115,26 +115,26 @@ class SelectionTest(unittest.TestCase):
             cross_validate.parse_candidates("a: novalue\n")
 
     @unittest.skipIf(built_executable("localize_offline") is None, "localize_offline not built (source the workspace)")
-    def test_the_shipped_core_parameter_candidates_are_parameters_in_range(self):
-        # doc/cv_core_parameters.txt, the grid doc/results.md reports: every name one localize_offline takes,
-        # every value inside its range (a misspelt name or a value out of range would be refused or
-        # corrected by the runs, and the figures would be those of another grid).
-        path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "doc", "cv_core_parameters.txt")
-        with open(path) as f:
-            candidates = cross_validate.parse_candidates(f.read())
-        self.assertEqual(len(candidates), 18)
+    def test_the_shipped_candidate_grids_name_parameters_in_range(self):
+        # doc/cv_core_parameters.txt and doc/cv_decision_parameters.txt, the grids doc/results.md reports:
+        # every name one localize_offline takes, every value inside its range (a misspelt name or a value out
+        # of range would be refused or corrected by the runs, and the figures would be those of another grid).
         help_text = subprocess.run([built_executable("localize_offline"), "--help-advanced"], stdout=subprocess.PIPE,
                                    stderr=subprocess.STDOUT, universal_newlines=True).stdout
         ranges = {m.group(1): (float(m.group(2)), float(m.group(3))) for m in
                   re.finditer(r"^    ([a-z_]+) = \S+  \(([-0-9.e]+) \.\. ([-0-9.e]+)", help_text, re.M)}
         self.assertIn("filter_window", ranges)
-        for name, assignments in candidates[1:]:
-            for assignment in assignments:
-                key, value = assignment.split("=", 1)
-                self.assertTrue(key in ranges, "%s: %s is not a parameter" % (name, key))
-                self.assertTrue(ranges[key][0] <= float(value) <= ranges[key][1],
-                                "%s: %s is out of range" % (name, assignment))
-
+        doc = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "doc")
+        for file_name, count in (("cv_core_parameters.txt", 18), ("cv_decision_parameters.txt", 19)):
+            with open(os.path.join(doc, file_name)) as f:
+                candidates = cross_validate.parse_candidates(f.read())
+            self.assertEqual(len(candidates), count, file_name)
+            for name, assignments in candidates[1:]:
+                for assignment in assignments:
+                    key, value = assignment.split("=", 1)
+                    self.assertTrue(key in ranges, "%s, %s: %s is not a parameter" % (file_name, name, key))
+                    self.assertTrue(ranges[key][0] <= float(value) <= ranges[key][1],
+                                    "%s, %s: %s is out of range" % (file_name, name, assignment))
 
 if __name__ == "__main__":
     unittest.main()
