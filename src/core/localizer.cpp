@@ -184,7 +184,7 @@ void Localizer::start()
   start_check_ = false;
   rows_since_start_ = views_since_start_ = 0;
   start_first_answer_ = -1;
-  recent_checking_ = false;
+  recent_checking_ = recent_contradicted_ = false;
   recent_unanswered_ = recent_pending_ = check_pending_ = 0;
   recent_confirmation_.clear();
   if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
@@ -1057,7 +1057,7 @@ void Localizer::transition(State next, int place)
 {
   // Every change of state_ but the initial one (start()) comes here; what each state needs on entry:
   state_ = next;
-  recent_checking_ = false;  // recentCheck starts afresh in any new state
+  recent_checking_ = recent_contradicted_ = false;  // recentCheck starts afresh in any new state
   recent_unanswered_ = recent_pending_ = check_pending_ = 0;
   recent_confirmation_.clear();
   switch (next)

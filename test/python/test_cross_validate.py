@@ -136,5 +136,6 @@ class SelectionTest(unittest.TestCase):
                     self.assertTrue(ranges[key][0] <= float(value) <= ranges[key][1],
                                     "%s, %s: %s is out of range" % (file_name, name, assignment))
 
+
 if __name__ == "__main__":
     unittest.main()
