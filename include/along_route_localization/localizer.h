@@ -415,7 +415,9 @@ private:
   void recentCheck(Frame* frame, SequenceMatch* match);
   /// Still tracking after the handler: the cruise speed's sample and the last match.
   void followTrack(const Frame& frame, int keyframe);
-  /// The result of the frame: keyframe (dead-reckoned while lost), confidence, status, homing.
+  /// The result of the frame: keyframe (contradicted: the place that contradicts, coasting or beating the
+  /// track by more than chanceMargin; lost: the global search's guess or, dead_reckon_while_lost, the
+  /// dead-reckoned keyframe), confidence (0 while lost or contradicted), status, homing.
   LocalizationResult publish(const Frame& frame, int keyframe, double confidence);
 
   /// The query shows the view of the last one that entered the ring buffer (stationary_ratio): the
@@ -488,8 +490,14 @@ private:
   /// How much cheaper per row, by chance, the best path at a wrong place of this map is than a stretch of
   /// track-sized ends at another wrong place, over `rows` rows: measured once per map and parameters on
   /// kChanceWindows stretches of the map's own keyframes taken as queries, their true places left out (the
-  /// largest margin seen). trackContradicted needs more than this.
+  /// largest margin seen). A contradicted frame while tracking publishes the place that contradicts only
+  /// above it; with contradiction_chance_margin, trackContradicted needs more than this to contradict.
   float chanceMargin(int rows);
+  /// map_stats_.chance_margins for every window of 1 to max(K, relocalization_rows) rows, in one pass.
+  void measureChanceMargins();
+  /// Whether any check weighs a contradiction against chanceMargin with these parameters (then it is
+  /// measured on construction and on every parameter change, not mid-run).
+  bool checksAgainstChance() const;
   static constexpr int kChanceWindows = 20;
   /// Lost from the track at `track_position` (keyframes): transition(kLost) clears the ring buffer (its rows
   /// covered only the track's band) and the dead-reckoned answer goes on from there at coastSpeed()
@@ -541,8 +549,7 @@ private:
     std::vector<uint8_t> repeats;        // [k]: keyframe k shows the view of the informative one before it
     std::vector<int> run;                // [k]: number of keyframes up to k that are not repeats
     std::vector<int> run_first, run_last;  // [k]: first and last keyframe of k's run (k itself if alone)
-    int chance_rows = -1;                // rows chance_margin was measured for (-1: not yet)
-    float chance_margin = 0.0f;
+    std::vector<float> chance_margins;   // [rows]: chanceMargin over that many rows (empty: not yet measured)
   };
   /// The map-only part of map_stats_ (medians, keyframe changes), on construction.
   void measureMap(bool parallel);
@@ -593,6 +600,7 @@ private:
   GlobalConfirmation recent_confirmation_; // of those checks: another place, confirmed
   CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
   int contradicting_place_ = -1;         // the place the last trackContradicted found
+  bool contradiction_beats_chance_ = false;  // ... and beats the track's end by more than chanceMargin
   double contradicting_confidence_ = 0.0;  // its margin confidence (matchConfidence, before calibration)
   GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed
   double coast_position_ = 0.0;          // kCoasting: the dead-reckoned keyframe

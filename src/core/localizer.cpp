@@ -171,6 +171,8 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
   raw_costs_.resize(n);
   shifts_.resize(n);
   mask_.resize(n);
+  if (checksAgainstChance())
+    measureChanceMargins();  // on load rather than on the first contradiction, mid-run
   start();
 }
 
@@ -236,7 +238,17 @@ void Localizer::setParams(const LocalizerParams& params)
   }
   if (comparators_changed)
     rebuildComparators();
-  map_stats_.chance_rows = -1;  // chanceMargin depends on the comparison, eq. 2 and the DTW
+  map_stats_.chance_margins.clear();  // chanceMargin depends on the comparison, eq. 2, the DTW and K
+  if (!raw_costs_.empty() && checksAgainstChance())  // (the constructor measures once its scratch is sized)
+    measureChanceMargins();
+}
+
+bool Localizer::checksAgainstChance() const
+{
+  // recentCheck weighs a contradiction against chance; a check while coasting only with the ablation switch.
+  const bool recent_check = params_.detect_kidnapping && params_.method == SequenceMethod::kOnlineDtw &&
+                            std::min(params_.relocalization_rows, params_.ring_buffer_rows) > 0;
+  return recent_check || params_.contradiction_chance_margin;
 }
 
 void Localizer::measureMap(bool parallel)
@@ -1002,11 +1014,14 @@ LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double c
   LocalizationResult result;
   result.query_informative = frame.informative;
   result.confidence = confidence;
-  // Contradicted (published lost): while coasting the place that contradicts, unless dead_reckon_while_lost;
-  // while tracking (recentCheck) the track's answer, until the checks confirm the other place.
-  result.keyframe = frame.contradicted && state_ == State::kCoasting && !params_.dead_reckon_while_lost ?
-                        contradicting_place_ :
-                        keyframe;
+  // Contradicted (published lost), unless dead_reckon_while_lost: while coasting the place that contradicts;
+  // while tracking (recentCheck) that place where it beats the track by more than chance does on this map
+  // (chanceMargin), else the track's answer, until the checks confirm the other place.
+  if (frame.contradicted && !params_.dead_reckon_while_lost &&
+      (state_ == State::kCoasting || contradiction_beats_chance_))
+    result.keyframe = contradicting_place_;
+  else
+    result.keyframe = keyframe;
   // Lost: confidence 0 until the global search confirms a place (the frame that confirms it answers there);
   // the answer is the global search's guess, or (dead_reckon_while_lost) where the robot went at the
   // cruise speed since the loss.
@@ -1154,6 +1169,7 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
     reachableEnds(last_confident_, frames_since_confident_, &first, &width);
   const SequenceMatch elsewhere = dtw_.match(*ring, first, width, rows, false, map_stats_.run.data());
   contradicting_place_ = elsewhere.keyframe;
+  contradiction_beats_chance_ = false;
   if (elsewhere.keyframe < 0 ||
       std::abs(map_stats_.run[elsewhere.keyframe] - map_stats_.run[track_keyframe]) <= params_.dtw.exclusion_radius)
     return false;  // the sequence still ends at the track's place
@@ -1165,8 +1181,8 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   contradicting_confidence_ = matchConfidence(elsewhere, false, evidence);
   if (matchConfidence(elsewhere, true, evidence) < params_.confidence_threshold)
     return false;  // no place stands out: weak evidence
-  if (!params_.contradiction_chance_margin)
-    return true;
+  if (!params_.contradiction_chance_margin && state_ != State::kTracking)
+    return true;  // coasting: the place that contradicts is published as it is (publish)
   // The track's own end over the same rows, as the track may choose it.
   const std::vector<float>& accumulated = dtw_.lastAccumulated();  // [k - first]
   const int lo = std::max(first, track_keyframe - params_.dtw.exclusion_radius);
@@ -1177,7 +1193,8 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   // Better than the track by more than a wrong stretch of this map is by chance (chanceMargin; it uses
   // the DTW too, so it comes after this check's own costs were read).
   const float margin = track_cost - elsewhere.cost;
-  return margin > chanceMargin(rows);
+  contradiction_beats_chance_ = margin > chanceMargin(rows);
+  return !params_.contradiction_chance_margin || contradiction_beats_chance_;
 }
 
 void Localizer::replayRecentQueries(int count, CostRingBuffer* target)
@@ -1215,42 +1232,54 @@ bool Localizer::moveTrackOnConfirmation(GlobalConfirmation* confirmation, bool i
 
 float Localizer::chanceMargin(int rows)
 {
-  if (map_stats_.chance_rows == rows)
-    return map_stats_.chance_margin;
+  if (map_stats_.chance_margins.empty())
+    measureChanceMargins();
+  const int most = static_cast<int>(map_stats_.chance_margins.size()) - 1;
+  return map_stats_.chance_margins[std::max(0, std::min(rows, most))];
+}
+
+void Localizer::measureChanceMargins()
+{
   // Stretches of this map's own keyframes are the queries, and their true places are left out: the
   // cheapest path at a wrong place then beats the track-sized stretch of ends at another wrong place by
-  // the chance margin of this map. Sampled at kChanceWindows evenly spaced stretches, the largest kept.
+  // the chance margin of this map. Sampled at kChanceWindows evenly spaced stretches, the largest kept,
+  // for every window a check may weigh (relocalization_rows growing to K): the newest r rows of each
+  // stretch's `most` rows give the margin over r rows, so each stretch's rows are computed once.
   const int n = static_cast<int>(map_->size());
+  const int most = std::max(0, std::min(std::max(params_.ring_buffer_rows, params_.relocalization_rows), n - 1));
+  std::vector<float>& largest = map_stats_.chance_margins;
+  largest.assign(most + 1, 0.0f);
   const int window = params_.dtw.exclusion_radius + params_.dtw.max_step + params_.max_jump_ahead + 1;
-  const int reach = params_.contrast_window + params_.dtw.exclusion_radius + rows * params_.dtw.max_step;
-  CostRingBuffer ring(rows, n);  // once per map and parameters: no need to keep it
-  float largest = 0.0f;
-  for (int sample = 0; sample < kChanceWindows && n > rows; ++sample)
+  CostRingBuffer ring(std::max(1, most), n);  // once per map and parameters: no need to keep it
+  for (int sample = 0; sample < kChanceWindows && most > 0; ++sample)
   {
-    const int a = static_cast<int>(static_cast<int64_t>(sample) * (n - rows) / kChanceWindows);
+    const int a = static_cast<int>(static_cast<int64_t>(sample) * (n - most) / kChanceWindows);
     ring.clear();
-    for (int i = 0; i < rows; ++i)
+    for (int i = 0; i < most; ++i)
       computeRow(map_->keyframe(a + i), map_->energy(a + i), map_stats_.informative[a + i] != 0, false, true, 0, n,
                  &ring);
-    dtw_.match(ring, 0, n, rows, false, map_stats_.run.data());
-    const std::vector<float>& accumulated = dtw_.lastAccumulated();
-    const int lo = a - reach, hi = a + rows - 1 + reach;  // the stretch's true place, and what eq. 2 spread of it
-    float best_wrong = std::numeric_limits<float>::infinity();
-    for (int k = 0; k < n; ++k)
-      if (k < lo || k > hi)
-        best_wrong = std::min(best_wrong, accumulated[k]);
-    // A track-sized stretch of ends at another wrong place, halfway round the map from this one.
-    const int start = ((a + n / 2) % n);
-    float track_wrong = std::numeric_limits<float>::infinity();
-    for (int k = start; k < std::min(n, start + window); ++k)
-      if (k < lo || k > hi)
-        track_wrong = std::min(track_wrong, accumulated[k]);
-    if (std::isfinite(best_wrong) && std::isfinite(track_wrong))
-      largest = std::max(largest, track_wrong - best_wrong);
+    const int last = a + most - 1;  // the stretch's newest keyframe
+    for (int rows = 1; rows <= most; ++rows)
+    {
+      dtw_.match(ring, 0, n, rows, false, map_stats_.run.data());
+      const std::vector<float>& accumulated = dtw_.lastAccumulated();
+      // The true place of the newest `rows` keyframes, and what eq. 2 spread of it.
+      const int reach = params_.contrast_window + params_.dtw.exclusion_radius + rows * params_.dtw.max_step;
+      const int lo = last - rows + 1 - reach, hi = last + reach;
+      float best_wrong = std::numeric_limits<float>::infinity();
+      for (int k = 0; k < n; ++k)
+        if (k < lo || k > hi)
+          best_wrong = std::min(best_wrong, accumulated[k]);
+      // A track-sized stretch of ends at another wrong place, halfway round the map from this one.
+      const int start = ((a + n / 2) % n);
+      float track_wrong = std::numeric_limits<float>::infinity();
+      for (int k = start; k < std::min(n, start + window); ++k)
+        if (k < lo || k > hi)
+          track_wrong = std::min(track_wrong, accumulated[k]);
+      if (std::isfinite(best_wrong) && std::isfinite(track_wrong))
+        largest[rows] = std::max(largest[rows], track_wrong - best_wrong);
+    }
   }
-  map_stats_.chance_rows = rows;
-  map_stats_.chance_margin = largest;
-  return map_stats_.chance_margin;
 }
 
 double Localizer::evidenceShare(const SequenceMatch& match) const

@@ -362,8 +362,9 @@ TEST(Localizer, AKnownStartIsKeptAgainstALookAlikeFoundAfterIt)
   // not have reached 150 by frame 15 (at most max_step = 2 keyframes a frame, with the exclusion radius
   // 5: 4 + 2 x 11 + 5 = 31): the start holds, and the answers stay on the route's start (the band, radius
   // 40, never holds 140). Frames 20-34, on the route again: its own keyframes (on frames 20 and 21, the
-  // check over, the newest 8 frames, mostly beside the route, still contradict the track: published lost at
-  // the track's answer, recentCheck, until its own views support it again).
+  // check over, the newest 8 frames, mostly beside the route, still contradict the track: published lost,
+  // recentCheck, until its own views support it again; the answer is the look-alike's place (measured: 155
+  // on both), which those frames show better than the track by more than chance does on this map).
   const auto map = syntheticMap(200);
   arl::LocalizerParams params;
   params.ring_buffer_rows = 20;
@@ -377,9 +378,17 @@ TEST(Localizer, AKnownStartIsKeptAgainstALookAlikeFoundAfterIt)
       if (i < 20 || i >= 22)
       {
         EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "beside the start, frame " << i;
+        EXPECT_LE(result.keyframe, 2 * i) << "beside the start, frame " << i;
+        EXPECT_LT(result.keyframe, 40) << "beside the start, frame " << i;
       }
-      EXPECT_LE(result.keyframe, 2 * i) << "beside the start, frame " << i;
-      EXPECT_LT(result.keyframe, 40) << "beside the start, frame " << i;
+      else
+      {
+        EXPECT_EQ(LocalizationStatus::kLost, result.status) << "beside the start, frame " << i;
+        EXPECT_EQ(0.0, result.confidence) << "beside the start, frame " << i;
+        // where the frames beside the route (like 140..154) left the look-alike, or a step or two on
+        EXPECT_GE(result.keyframe, 154) << "beside the start, frame " << i;
+        EXPECT_LE(result.keyframe, 156) << "beside the start, frame " << i;
+      }
       if (i >= 25)
       {
         EXPECT_EQ(i, result.keyframe) << "beside the start, frame " << i;
@@ -2109,8 +2118,10 @@ TEST(Localizer, ACarriedRobotThatStandsStillStaysContradicted)
   // newest frames finds the track contradicted (published lost), and init_confirm_frames (5) checks must
   // agree before the track moves. Then the robot stands at 156 for 20 frames: copies of one view, no new
   // evidence either way, so the last verdict stands: every one is published lost, confidence 0, where it
-  // was published tracking the old place before (Nordland's kidnapped fold 2: 40 frames in a station).
-  // Once it drives on (157..) the checks confirm the new place and the track moves there.
+  // was published tracking the old place before (Nordland's kidnapped fold 2: 40 frames in a station),
+  // and at the place that contradicts (156: it beats the track by more than chance does on this map),
+  // where it was published at the old track's answer before. Once it drives on (157..) the checks confirm
+  // the new place and the track moves there.
   const auto map = syntheticMap(200);
   std::vector<int> keyframes;
   for (int k = 0; k < 60; ++k)
@@ -2136,12 +2147,13 @@ TEST(Localizer, ACarriedRobotThatStandsStillStaysContradicted)
   }
   std::printf("carried to 150 at frame 60, standing at 156 from frame %zu, driving on from %zu: %s\n", stand_from,
               drive_from, marks.c_str());
-  // measured: right to frame 59; 60-65 the old place; 66 contradicted; standing: lost (before: the old place,
-  // tracking); the first 3 new views after it the old place again, then lost, tracking it from frame 95
+  // measured: right to frame 59; 60-65 the old place; 66 contradicted, published at 156; standing: lost at
+  // 156 (before: the old place, tracking; then lost at the old place); the first 3 new views after it the
+  // old place again, then lost, tracking it from frame 95
   EXPECT_EQ(std::string(60, '.'), marks.substr(0, 60));
   const std::string before_standing = marks.substr(60, stand_from - 60);
   ASSERT_NE(std::string::npos, before_standing.find_first_of("Ll")) << "no contradiction before the robot stopped";
-  EXPECT_EQ(std::string(drive_from - stand_from, 'L'), marks.substr(stand_from, drive_from - stand_from));
+  EXPECT_EQ(std::string(drive_from - stand_from, 'l'), marks.substr(stand_from, drive_from - stand_from));
   EXPECT_EQ(std::string(20, '.'), marks.substr(marks.size() - 20));
 }
 
@@ -2609,4 +2621,54 @@ TEST(StandstillDetector, SaysWhatTheRobotDidBetweenTwoFrames)
   EXPECT_EQ(arl::RobotMotion::kStoodStill, detector.sinceLastFrame(5.3));
   detector.velocity(std::nan(""), 5.35);  // ignored
   EXPECT_EQ(arl::RobotMotion::kStoodStill, detector.sinceLastFrame(5.4));
+}
+
+TEST(Localizer, AContradictionIsPublishedAtItsPlaceOnlyWhenItBeatsChanceOnThisMap)
+{
+  // Tracked along keyframes 0..59 of a 200-keyframe route, the robot is carried to 150 and shows 150,
+  // 151, ... blended with other views (90-60 % its own). The check of the newest frames finds the track
+  // contradicted and, init_confirm_frames checks later, moves it there; the frames in between are published
+  // lost, confidence 0. Where: at the place that contradicts when its newest rows beat the track's end by
+  // more than chance does on this map (Localizer::chanceMargin: stretches of the map's own keyframes as
+  // queries, their true places left out), else at the track's answer. On a map of distinct views (random
+  // keyframes) chance is small: the place. On the same map with one stretch seen twice (keyframes 100-139
+  // show 20-59 again, away from both places) a stretch of this map matches another place as well as the
+  // carried frames match theirs: the track's answer.
+  for (int repeat = 0; repeat < 2; ++repeat)
+  {
+    auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
+    for (int k = 0; k < 200; ++k)
+    {
+      const int view = repeat && k >= 100 && k < 140 ? k - 80 : k;
+      map->addKeyframe(synthetic::randomFrame(1000 + view), 1000000000LL * k);
+    }
+    for (const double own : { 0.9, 0.8, 0.7, 0.6 })
+    {
+      arl::Localizer localizer(map, arl::LocalizerParams());
+      std::string marks;
+      for (int i = 0; i < 90; ++i)
+      {
+        const int truth = i < 60 ? i : 150 + (i - 60);
+        cv::Mat frame = keyframeCopy(*map, truth);
+        if (i >= 60)
+          cv::addWeighted(map->keyframeMat(truth), own, synthetic::randomFrame(7000 + i), 1.0 - own, 0.0, frame);
+        const arl::LocalizationResult result = localizer.process(frame);
+        const bool right = std::abs(result.keyframe - truth) <= 1;
+        marks += result.status == LocalizationStatus::kLost ? (right ? 'l' : 'L') : (right ? '.' : 'x');
+        if (result.status == LocalizationStatus::kLost)
+        {
+          EXPECT_EQ(0.0, result.confidence) << "frame " << i;
+          // not right: the track's answer, near where it was carried from
+          EXPECT_TRUE(repeat ? result.keyframe < 100 : right) << "frame " << i << ", keyframe " << result.keyframe;
+        }
+      }
+      const std::string label = std::string(repeat ? "a stretch seen twice" : "distinct views") + ", " +
+                                std::to_string(static_cast<int>(own * 100)) + " % own view: " + marks;
+      std::printf("%s\n", label.c_str());
+      // measured: right to frame 59; 5-6 frames the old place; 4 contradicted; the new place from frame 69-70
+      EXPECT_EQ(std::string(60, '.'), marks.substr(0, 60)) << label;
+      EXPECT_NE(std::string::npos, marks.find_first_of("lL", 60)) << label;
+      EXPECT_EQ(std::string(20, '.'), marks.substr(70)) << label;
+    }
+  }
 }
