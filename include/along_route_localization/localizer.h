@@ -300,6 +300,11 @@ public:
   /// Applies new parameters between frames. Buffers are resized; the current match and status are
   /// kept when the sequence settings allow it. Throws std::invalid_argument for invalid params.
   void setParams(const LocalizerParams& params);
+  /// Measures now, once per map and parameters, the map statistics the checks otherwise measure on the
+  /// first check that needs them (the chance margins, chanceMargin: 20 x K whole-map rows, about 0.2 s for
+  /// 1800 keyframes), so that no frame mid-run waits for them. The localizer nodelet and localize_offline
+  /// call it after construction and after setParams; the answers are the same either way.
+  void measureMapStatisticsNow();
   const LocalizerParams& params() const { return params_; }
 
   /// Processes one preprocessed image (CV_8UC1, the map's size). Throws std::invalid_argument otherwise.
@@ -495,8 +500,8 @@ private:
   float chanceMargin(int rows);
   /// map_stats_.chance_margins for every window of 1 to max(K, relocalization_rows) rows, in one pass.
   void measureChanceMargins();
-  /// Whether any check weighs a contradiction against chanceMargin with these parameters (then it is
-  /// measured on construction and on every parameter change, not mid-run).
+  /// Whether any check weighs a contradiction against chanceMargin with these parameters (then
+  /// measureMapStatisticsNow measures it).
   bool checksAgainstChance() const;
   static constexpr int kChanceWindows = 20;
   /// Lost from the track at `track_position` (keyframes): transition(kLost) clears the ring buffer (its rows

@@ -171,8 +171,6 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
   raw_costs_.resize(n);
   shifts_.resize(n);
   mask_.resize(n);
-  if (checksAgainstChance())
-    measureChanceMargins();  // on load rather than on the first contradiction, mid-run
   start();
 }
 
@@ -239,7 +237,11 @@ void Localizer::setParams(const LocalizerParams& params)
   if (comparators_changed)
     rebuildComparators();
   map_stats_.chance_margins.clear();  // chanceMargin depends on the comparison, eq. 2, the DTW and K
-  if (!raw_costs_.empty() && checksAgainstChance())  // (the constructor measures once its scratch is sized)
+}
+
+void Localizer::measureMapStatisticsNow()
+{
+  if (checksAgainstChance() && map_stats_.chance_margins.empty())
     measureChanceMargins();
 }
 
@@ -1246,6 +1248,10 @@ void Localizer::measureChanceMargins()
   // for every window a check may weigh (relocalization_rows growing to K): the newest r rows of each
   // stretch's `most` rows give the margin over r rows, so each stretch's rows are computed once.
   const int n = static_cast<int>(map_->size());
+  // With the DTW's own parameters, whenever it is measured (a track sets the cruise speed's tie-break per
+  // frame, matchSequence), and those restored after it.
+  const DtwParams tracking_dtw = dtw_.params();
+  dtw_.setParams(params_.dtw);
   const int most = std::max(0, std::min(std::max(params_.ring_buffer_rows, params_.relocalization_rows), n - 1));
   std::vector<float>& largest = map_stats_.chance_margins;
   largest.assign(most + 1, 0.0f);
@@ -1280,6 +1286,7 @@ void Localizer::measureChanceMargins()
         largest[rows] = std::max(largest[rows], track_wrong - best_wrong);
     }
   }
+  dtw_.setParams(tracking_dtw);
 }
 
 double Localizer::evidenceShare(const SequenceMatch& match) const

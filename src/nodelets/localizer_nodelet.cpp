@@ -514,6 +514,7 @@ void LocalizerNodelet::useMapIfAccepted()
     {
       localizer_.reset(new Localizer(map_, effectiveParams(params_)));
     }
+    localizer_->measureMapStatisticsNow();  // on load, not on the first frame a check needs them
     if (!refusal_.empty())
       NODELET_INFO("Preprocessing parameters match map %s again; localizing%s", map_path_.c_str(),
                    drive_localized_ ? " from an unknown place (a global search), since the refusal began mid-drive" :
@@ -561,6 +562,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
       try
       {
         localizer_->setParams(effectiveParams(params_));  // between frames; keeps the current match
+        localizer_->measureMapStatisticsNow();
       }
       catch (const std::exception& e)
       {

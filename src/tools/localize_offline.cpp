@@ -376,6 +376,7 @@ int main(int argc, char** argv)
   try
   {
     alr::Localizer localizer(map, localizer_params);  // the per-map tables (map statistics) are built here
+    localizer.measureMapStatisticsNow();               // and the ones a check would measure on first need
     tables_seconds = secondsSince(localize_start);
     Progress progress("localizing", progress_mode);
     char line[160];

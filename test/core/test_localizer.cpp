@@ -2672,3 +2672,29 @@ TEST(Localizer, AContradictionIsPublishedAtItsPlaceOnlyWhenItBeatsChanceOnThisMa
     }
   }
 }
+
+TEST(Localizer, TheChanceMarginsGiveTheSameAnswersMeasuredOnLoadOrOnFirstNeed)
+{
+  // measureMapStatisticsNow (the nodelet and localize_offline, on load) against the first check that needs
+  // them (mid-run, while the DTW holds a track's cruise-speed tie-break): the same margins, so every answer
+  // the same. The robot of AContradictionIsPublishedAtItsPlaceOnlyWhenItBeatsChanceOnThisMap, carried.
+  const auto map = syntheticMap(200);
+  arl::Localizer on_load(map, arl::LocalizerParams());
+  on_load.measureMapStatisticsNow();
+  arl::Localizer on_need(map, arl::LocalizerParams());
+  int lost = 0;
+  for (int i = 0; i < 90; ++i)
+  {
+    const int truth = i < 60 ? i : 150 + (i - 60);
+    cv::Mat frame = keyframeCopy(*map, truth);
+    if (i >= 60)
+      cv::addWeighted(map->keyframeMat(truth), 0.8, synthetic::randomFrame(7000 + i), 0.2, 0.0, frame);
+    const arl::LocalizationResult a = on_load.process(frame);
+    const arl::LocalizationResult b = on_need.process(frame);
+    ASSERT_EQ(a.status, b.status) << "frame " << i;
+    ASSERT_EQ(a.keyframe, b.keyframe) << "frame " << i;
+    ASSERT_EQ(a.confidence, b.confidence) << "frame " << i;
+    lost += a.status == LocalizationStatus::kLost ? 1 : 0;
+  }
+  EXPECT_GT(lost, 0) << "no check ran: nothing measured on first need";
+}
