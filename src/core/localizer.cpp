@@ -1265,6 +1265,7 @@ void Localizer::measureChanceMargins()
       computeRow(map_->keyframe(a + i), map_->energy(a + i), map_stats_.informative[a + i] != 0, false, true, 0, n,
                  &ring);
     const int last = a + most - 1;  // the stretch's newest keyframe
+    const int start = ((a + n / 2) % n);  // a track-sized stretch of ends halfway round the map from this one
     for (int rows = 1; rows <= most; ++rows)
     {
       dtw_.match(ring, 0, n, rows, false, map_stats_.run.data());
@@ -1276,8 +1277,7 @@ void Localizer::measureChanceMargins()
       for (int k = 0; k < n; ++k)
         if (k < lo || k > hi)
           best_wrong = std::min(best_wrong, accumulated[k]);
-      // A track-sized stretch of ends at another wrong place, halfway round the map from this one.
-      const int start = ((a + n / 2) % n);
+      // The track-sized stretch of ends at another wrong place (from `start`).
       float track_wrong = std::numeric_limits<float>::infinity();
       for (int k = start; k < std::min(n, start + window); ++k)
         if (k < lo || k > hi)

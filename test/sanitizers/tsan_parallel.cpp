@@ -167,7 +167,7 @@ void expectParallelEqualsSerial(arl::CostFunction cost_function, int map_size, i
   params.lost_after_frames = 3;
   // No check of the newest frames while tracking: its whole-map rows are the global search's computeRow,
   // which the frames before and after the loss run anyway, and with it each Localizer measures the map's
-  // chance margins on construction (20 x K whole-map rows), which under ThreadSanitizer took over ten
+  // chance margins on its first check (20 x K whole-map rows), which under ThreadSanitizer took over ten
   // minutes of CI for these two maps.
   params.relocalization_rows = 0;
   params.parallel = false;
