@@ -153,8 +153,8 @@ struct LocalizerParams
   /// (calibratedConfidence; a logistic fit, Platt scaling). scripts/cross_validate fits both on real
   /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
   /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. Both dimensionless.
-  float calibration_offset = 0.682f;
-  float calibration_slope = 8.079f;
+  float calibration_offset = 0.693f;
+  float calibration_slope = 8.111f;
   /// Lost (global search again) when lost_after_frames of the last lost_window_frames informative
   /// frames were low-confidence (LossDetector). Featureless frames do not count, nor do copies of the
   /// last view (the camera standing still): they bring no evidence of another place, and a long stop at
@@ -167,9 +167,11 @@ struct LocalizerParams
   /// featureless plain: the images neither confirm nor contradict the track) the track goes on, with the
   /// low confidence the images give it, its answer dead-reckoned at the cruise speed from the last
   /// confident one until a frame is confident again. A track no evidence established yet (a known start
-  /// under its check) and one dead-reckoned past the route's last keyframe are lost as before. Off: every
-  /// loss detection loses the track.
-  bool loss_needs_contradiction = false;
+  /// under its check) and one dead-reckoned past the route's last keyframe are lost as before. While
+  /// coasting, a check whose sequence places the robot next to the dead-reckoned keyframe, or where it can
+  /// have driven and better than there by more than chance, moves the dead reckoning there
+  /// (trackContradicted). Off: every loss detection loses the track (before 2026-11-27's twenty-first round).
+  bool loss_needs_contradiction = true;
   /// While lost, answer with the dead-reckoned keyframe (the last tracked one, moved on at the cruise speed
   /// since the loss) with confidence 0, never the unconfirmed guess of the global search. Off: the guess.
   bool dead_reckon_while_lost = false;
@@ -483,6 +485,10 @@ private:
   /// and than the track's end ([track - exclusion_radius, track + max_step + max_jump_ahead]) by a margin
   /// mapping to at least confidence_threshold (matchConfidence, the evidence being the distinct views
   /// among those rows over their number). Weak evidence (no place stands out) is not contrary evidence.
+  /// While coasting, a sequence that ends next to the dead-reckoned keyframe (within the exclusion radius),
+  /// or where the robot can have driven since the last confident answer (reachableEnds) and beats the
+  /// dead-reckoned end by more than chanceMargin, is no contradiction: the images place the robot there,
+  /// and coast_fix_ says where (coastStep moves the dead reckoning to it).
   /// new_rows: the check goes on, the newest new_rows frames (those since its last row) are new; 0: it
   /// starts afresh.
   /// The rows weighed: the newest `window` recent queries' whole-map rows, kept in `ring` (coasting: K rows in
@@ -492,6 +498,10 @@ private:
   /// after the images placed it at `anchor` (a lost track's last answer; coasting: the last confident one):
   /// [*first, *first + *width). The ends of the match after a loss and of the checks while coasting.
   void reachableEnds(double anchor, int64_t frames, int* first, int* width) const;
+  /// The cheapest end of the last DTW match (over [first, first + width)) at the track's place,
+  /// [track - exclusion_radius, track + ahead]: a track may jump max_step + max_jump_ahead ahead; a
+  /// dead-reckoned keyframe is only as sure as the exclusion radius around it.
+  float trackEndCost(int track_keyframe, int ahead, int first, int width) const;
   /// How much cheaper per row, by chance, the best path at a wrong place of this map is than a stretch of
   /// track-sized ends at another wrong place, over `rows` rows: measured once per map and parameters on
   /// kChanceWindows stretches of the map's own keyframes taken as queries, their true places left out (the
@@ -609,6 +619,7 @@ private:
   double contradicting_confidence_ = 0.0;  // its margin confidence (matchConfidence, before calibration)
   GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed
   double coast_position_ = 0.0;          // kCoasting: the dead-reckoned keyframe
+  int coast_fix_ = -1;                   // kCoasting: where the last check placed the robot instead (or -1)
   int last_confident_ = -1;              // the last confident, informative answer while tracking
   int frames_since_confident_ = 0;
   double lost_position_ = -1.0;          // dead-reckoned keyframe while lost (< 0: none, no track to go on)

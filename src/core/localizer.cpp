@@ -969,6 +969,15 @@ void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started
     check_pending_ = 0;
     if (moveTrackOnConfirmation(&check_confirmation_, frame->informative, check_ring_, frame, match))
       return;
+    if (coast_fix_ >= 0)
+    {
+      // The check placed the robot where it can be (trackContradicted): this frame's answer, and the dead
+      // reckoning goes on from there.
+      coast_position_ = coast_fix_;
+      match->keyframe = coast_fix_;
+      run_position_ = -1.0;
+      return;
+    }
   }
   else
   {
@@ -1149,6 +1158,7 @@ bool Localizer::newestRowsSupport(const Frame& frame, int track_keyframe)
 bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, CostRingBuffer* ring)
 {
   const int n = static_cast<int>(map_->size());
+  coast_fix_ = -1;
   if (recent_count_ < 1)
     return false;  // nothing to weigh
   if (new_rows > 0 && new_rows < window && new_rows <= recent_count_ && ring->size() > 0 &&
@@ -1172,31 +1182,59 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   const SequenceMatch elsewhere = dtw_.match(*ring, first, width, rows, false, map_stats_.run.data());
   contradicting_place_ = elsewhere.keyframe;
   contradiction_beats_chance_ = false;
-  if (elsewhere.keyframe < 0 ||
-      std::abs(map_stats_.run[elsewhere.keyframe] - map_stats_.run[track_keyframe]) <= params_.dtw.exclusion_radius)
-    return false;  // the sequence still ends at the track's place
+  if (elsewhere.keyframe < 0)
+    return false;
+  const bool at_track =
+      std::abs(map_stats_.run[elsewhere.keyframe] - map_stats_.run[track_keyframe]) <= params_.dtw.exclusion_radius;
   // As a global search confirms a place: its confidence weighed by the distinct views among K rows, however
   // few the check's window holds (weighed by its own 8 rows, the check while tracking moved the track to
   // look-alike places of the synthetic routes: seed 4, within one 1.000 -> 0.787).
   const double evidence =
       std::min(1.0, static_cast<double>(ring->distinctViews(elsewhere.rows)) / std::max(1, params_.ring_buffer_rows));
+  const bool stands_out = matchConfidence(elsewhere, true, evidence) >= params_.confidence_threshold;
+  if (state_ == State::kCoasting)
+  {
+    // Evidence placing the robot where it can be is no contradiction: the dead reckoning moves there. A
+    // place that stands out next to the reckoned keyframe, or one the robot can have driven to since the
+    // last confident answer (forward, at most max_step keyframes a frame, give or take the exclusion
+    // radius) that is better than the reckoned end by more than chance (a robot that stood still or sped
+    // up while the images said little: dead reckoning at the cruise speed does not know).
+    const int64_t driven = static_cast<int64_t>(last_confident_) - elsewhere.keyframe;
+    const bool reachable =
+        driven <= params_.dtw.exclusion_radius &&
+        -driven <= static_cast<int64_t>(params_.dtw.max_step) * frames_since_confident_ + params_.dtw.exclusion_radius;
+    const float margin =
+        reachable ? trackEndCost(track_keyframe, params_.dtw.exclusion_radius, first, width) - elsewhere.cost : 0.0f;
+    if ((at_track && stands_out) || (reachable && margin > chanceMargin(rows)))  // (chanceMargin: DTW, after)
+    {
+      coast_fix_ = elsewhere.keyframe;
+      return false;
+    }
+  }
+  if (at_track)
+    return false;  // the sequence still ends at the track's place
   contradicting_confidence_ = matchConfidence(elsewhere, false, evidence);
-  if (matchConfidence(elsewhere, true, evidence) < params_.confidence_threshold)
+  if (!stands_out)
     return false;  // no place stands out: weak evidence
   if (!params_.contradiction_chance_margin && state_ != State::kTracking)
     return true;  // coasting: the place that contradicts is published as it is (publish)
-  // The track's own end over the same rows, as the track may choose it.
-  const std::vector<float>& accumulated = dtw_.lastAccumulated();  // [k - first]
-  const int lo = std::max(first, track_keyframe - params_.dtw.exclusion_radius);
-  const int hi = std::min(first + width - 1, track_keyframe + params_.dtw.max_step + params_.max_jump_ahead);
-  float track_cost = std::numeric_limits<float>::infinity();
-  for (int k = lo; k <= hi; ++k)
-    track_cost = std::min(track_cost, accumulated[k - first]);
-  // Better than the track by more than a wrong stretch of this map is by chance (chanceMargin; it uses
-  // the DTW too, so it comes after this check's own costs were read).
-  const float margin = track_cost - elsewhere.cost;
+  // Better than the track's own end over the same rows by more than a wrong stretch of this map is by
+  // chance (chanceMargin; it uses the DTW too, so it comes after this check's own costs were read).
+  const float margin =
+      trackEndCost(track_keyframe, params_.dtw.max_step + params_.max_jump_ahead, first, width) - elsewhere.cost;
   contradiction_beats_chance_ = margin > chanceMargin(rows);
   return !params_.contradiction_chance_margin || contradiction_beats_chance_;
+}
+
+float Localizer::trackEndCost(int track_keyframe, int ahead, int first, int width) const
+{
+  const std::vector<float>& accumulated = dtw_.lastAccumulated();  // [k - first]
+  const int lo = std::max(first, track_keyframe - params_.dtw.exclusion_radius);
+  const int hi = std::min(first + width - 1, track_keyframe + ahead);
+  float cost = std::numeric_limits<float>::infinity();
+  for (int k = lo; k <= hi; ++k)
+    cost = std::min(cost, accumulated[k - first]);
+  return cost;
 }
 
 void Localizer::replayRecentQueries(int count, CostRingBuffer* target)

@@ -485,6 +485,7 @@ TEST(Localizer, WithoutKidnappingOnlyALossMovesTheTrack)
     arl::LocalizerParams params;
     params.ring_buffer_rows = 20;
     params.detect_kidnapping = detect;
+    params.loss_needs_contradiction = false;  // lost on low confidence: the search after a loss is the subject
     arl::Localizer localizer(map, params);
     Found found;
     for (int i = 0; found.frame < 0; ++i)
@@ -560,6 +561,7 @@ TEST(Localizer, WithoutKidnappingALostRobotIsSearchedWhereItCouldHaveDriven)
   const auto run = [&](bool detect, int* lost, int* far, int* found_on) {
     arl::LocalizerParams params;
     params.detect_kidnapping = detect;
+    params.loss_needs_contradiction = false;  // lost on low confidence: the search after a loss is the subject
     arl::Localizer localizer(map, params);
     arl::LocalizationResult result;
     *lost = *far = 0;
@@ -1464,6 +1466,43 @@ TEST(Localizer, WeakEvidenceKeepsTheTrack)
       EXPECT_GT(lost, 0);
     }
   }
+}
+
+TEST(Localizer, ACoastingEstimateMovesWhereTheChecksPlaceTheRobot)
+{
+  // Weak evidence, then evidence again behind the dead reckoning. Track keyframes 0..40 (one a frame), then
+  // 20 frames that resemble no keyframe while the robot stands at keyframe 40 unseen (fog: a standing robot
+  // whose frames are not copies of one view); the loss detection makes the estimate coast on at the cruise
+  // speed, one keyframe a frame, to about 55. Then the fog lifts: keyframes 41, 42, ... The check of each
+  // coasting frame ends its sequence at the robot's place, 15-20 keyframes behind the reckoning: where the
+  // robot can have driven since its last confident answer (40), and better than the reckoned end by more
+  // than chance on this map. So the dead reckoning moves there, and the status stays tracking: these are
+  // no contradiction (before the twenty-first round they were, and the frames were published lost until
+  // init_confirm_frames checks had confirmed the place).
+  const auto map = syntheticMap(200);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i <= 40; ++i)
+    ASSERT_EQ(i, localizer.process(keyframeCopy(*map, i)).keyframe);
+  int coasted_to = -1;
+  for (int j = 0; j < 20; ++j)
+  {
+    const arl::LocalizationResult r = localizer.process(randomFrame(64000 + j));
+    ASSERT_NE(LocalizationStatus::kLost, r.status) << "fog frame " << j << ": weak evidence is no contradiction";
+    coasted_to = r.keyframe;
+  }
+  std::string marks;  // per frame after the fog: . within one of the truth, x not, l lost
+  for (int i = 41; i <= 70; ++i)
+  {
+    const arl::LocalizationResult r = localizer.process(keyframeCopy(*map, i));
+    marks += r.status == LocalizationStatus::kLost ? 'l' : std::abs(r.keyframe - i) <= 1 ? '.' : 'x';
+  }
+  std::printf("coasted to %d in the fog; after it (keyframes 41..70): %s\n", coasted_to, marks.c_str());
+  EXPECT_GE(coasted_to, 50) << "the estimate coasted on in the fog";
+  EXPECT_EQ(std::string::npos, marks.find('l')) << "evidence where the robot can be is no contradiction";
+  const size_t right = marks.find('.');
+  ASSERT_NE(std::string::npos, right);
+  EXPECT_LE(right, 8u);
+  EXPECT_EQ(std::string(marks.size() - right, '.'), marks.substr(right)) << "and it holds";
 }
 
 TEST(Localizer, CoastingEnteredAtTheRouteEndStaysOnTheMap)
@@ -2382,6 +2421,8 @@ TEST(LocalizerStates, WithLossNeedsContradictionATrackDeadReckonedPastTheRouteEn
   // still sees new views has left the route: every frame after the first answer at the last keyframe is
   // lost (one more answer there when the position rounded up to it). Dead reckoning held it at the last
   // keyframe for good before (kidnapped from the end of the route, fold 3 of the cross-validation).
+  // On the way a check may place the robot behind the reckoning (random views beat chance now and then on
+  // this small map: from keyframe 68 back to 50 here), so it reaches the end later: 80 frames, not 45.
   const int n = 80;
   const auto map = syntheticMap(n);
   arl::LocalizerParams params;
@@ -2390,7 +2431,7 @@ TEST(LocalizerStates, WithLossNeedsContradictionATrackDeadReckonedPastTheRouteEn
   for (int i = 0; i <= 50; ++i)
     ASSERT_EQ(i, localizer.process(keyframeCopy(*map, i)).keyframe);
   std::string marks;  // per frame: c tracking status below the last keyframe, e at it, l lost
-  for (int j = 0; j < 45; ++j)
+  for (int j = 0; j < 80; ++j)
   {
     const arl::LocalizationResult r = localizer.process(randomFrame(62000 + j));
     ASSERT_GE(r.keyframe, 0);
@@ -2535,6 +2576,7 @@ TEST(LocalizerStates, MissedFramesWhileLostMoveTheDeadReckoningOn)
   const auto map = syntheticMap(400);
   arl::LocalizerParams params;
   params.dead_reckon_while_lost = true;
+  params.loss_needs_contradiction = false;  // lost on low confidence (by default the track coasts on)
   params.relocalization_rows = 0;  // the global search from an empty window: no chance place confirmed here
   arl::Localizer localizer(map, params);
   driveAtTenHz(localizer, *map, 0, 40);
