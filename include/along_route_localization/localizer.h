@@ -486,8 +486,9 @@ private:
   /// mapping to at least confidence_threshold (matchConfidence, the evidence being the distinct views
   /// among those rows over their number). Weak evidence (no place stands out) is not contrary evidence.
   /// While coasting, a sequence that ends next to the dead-reckoned keyframe (within the exclusion radius),
-  /// or where the robot can have driven since the last confident answer (reachableEnds) and beats the
-  /// dead-reckoned end by more than chanceMargin, is no contradiction: the images place the robot there,
+  /// or where the robot can have driven since the last confident answer (forward, at most max_step a frame,
+  /// give or take the exclusion radius) and beats the dead-reckoned end ([reckoned - exclusion_radius,
+  /// reckoned + exclusion_radius]) by more than chanceMargin, is no contradiction: the images place it there,
   /// and coast_fix_ says where (coastStep moves the dead reckoning to it).
   /// new_rows: the check goes on, the newest new_rows frames (those since its last row) are new; 0: it
   /// starts afresh.

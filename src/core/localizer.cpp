@@ -247,10 +247,12 @@ void Localizer::measureMapStatisticsNow()
 
 bool Localizer::checksAgainstChance() const
 {
-  // recentCheck weighs a contradiction against chance; a check while coasting only with the ablation switch.
-  const bool recent_check = params_.detect_kidnapping && params_.method == SequenceMethod::kOnlineDtw &&
-                            std::min(params_.relocalization_rows, params_.ring_buffer_rows) > 0;
-  return recent_check || params_.contradiction_chance_margin;
+  // recentCheck weighs a contradiction against chance; a check while coasting weighs the place it found
+  // against the reckoned one (and, with the ablation switch, a contradiction too).
+  const bool dtw = params_.method == SequenceMethod::kOnlineDtw;
+  const bool recent_check =
+      params_.detect_kidnapping && dtw && std::min(params_.relocalization_rows, params_.ring_buffer_rows) > 0;
+  return recent_check || (dtw && params_.loss_needs_contradiction) || params_.contradiction_chance_margin;
 }
 
 void Localizer::measureMap(bool parallel)
