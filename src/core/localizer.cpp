@@ -1196,18 +1196,19 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   const bool stands_out = matchConfidence(elsewhere, true, evidence) >= params_.confidence_threshold;
   if (state_ == State::kCoasting)
   {
-    // Evidence placing the robot where it can be is no contradiction: the dead reckoning moves there. A
-    // place that stands out next to the reckoned keyframe, or one the robot can have driven to since the
-    // last confident answer (forward, at most max_step keyframes a frame, give or take the exclusion
-    // radius) that is better than the reckoned end by more than chance (a robot that stood still or sped
-    // up while the images said little: dead reckoning at the cruise speed does not know).
+    // Evidence placing the robot where it can be is no contradiction: the dead reckoning moves there. The
+    // sequence's end next to the reckoned keyframe, or one the robot can have driven to since the last
+    // confident answer (forward, at most max_step keyframes a frame, give or take the exclusion radius)
+    // that is better than the reckoned end by more than chance (a robot that stood still or sped up while
+    // the images said little: dead reckoning at the cruise speed does not know). Asking the end next to the
+    // reckoning to stand out as a place too measured a little lower (doc/evaluation_history.md).
     const int64_t driven = static_cast<int64_t>(last_confident_) - elsewhere.keyframe;
     const bool reachable =
         driven <= params_.dtw.exclusion_radius &&
         -driven <= static_cast<int64_t>(params_.dtw.max_step) * frames_since_confident_ + params_.dtw.exclusion_radius;
     const float margin =
         reachable ? trackEndCost(track_keyframe, params_.dtw.exclusion_radius, first, width) - elsewhere.cost : 0.0f;
-    if ((at_track && stands_out) || (reachable && margin > chanceMargin(rows)))  // (chanceMargin: DTW, after)
+    if (at_track || (reachable && margin > chanceMargin(rows)))  // (chanceMargin may run the DTW: after)
     {
       coast_fix_ = elsewhere.keyframe;
       return false;
