@@ -498,7 +498,9 @@ private:
   /// The keyframes a robot that only moves as it drives (detect_kidnapping false) can be at `frames` frames
   /// after the images placed it at `anchor` (a lost track's last answer; coasting: the last confident one):
   /// [*first, *first + *width). The ends of the match after a loss and of the checks while coasting.
-  void reachableEnds(double anchor, int64_t frames, int* first, int* width) const;
+  /// `slack`: keyframes of doubt about the anchor, behind and ahead (-1: search_radius, the track may have run
+  /// ahead of where the images last placed it; the checks while coasting: exclusion_radius).
+  void reachableEnds(double anchor, int64_t frames, int* first, int* width, int slack = -1) const;
   /// The cheapest end of the last DTW match (over [first, first + width)) at the track's place,
   /// [track - exclusion_radius, track + ahead]: a track may jump max_step + max_jump_ahead ahead; a
   /// dead-reckoned keyframe is only as sure as the exclusion radius around it.

@@ -733,14 +733,16 @@ Localizer::Frame Localizer::beginFrame(const uint8_t* query, float energy)
   return frame;
 }
 
-void Localizer::reachableEnds(double anchor, int64_t frames, int* first, int* width) const
+void Localizer::reachableEnds(double anchor, int64_t frames, int* first, int* width, int slack) const
 {
-  // From search_radius keyframes behind where the images last placed the robot (the track may have run
-  // ahead of it) to max_step keyframes a frame ahead of it.
+  // From `slack` (search_radius unless given) keyframes behind where the images last placed the robot (the
+  // track may have run ahead of it) to max_step keyframes a frame, and `slack`, ahead of it.
+  if (slack < 0)
+    slack = params_.search_radius;
   const int n = static_cast<int>(map_->size());
   const int64_t at = std::llround(anchor);
-  const int64_t last = std::min<int64_t>(n - 1, at + params_.search_radius + params_.dtw.max_step * frames);
-  *first = static_cast<int>(std::max<int64_t>(0, std::min<int64_t>(last, at - params_.search_radius)));
+  const int64_t last = std::min<int64_t>(n - 1, at + slack + params_.dtw.max_step * frames);
+  *first = static_cast<int>(std::max<int64_t>(0, std::min<int64_t>(last, at - slack)));
   *width = static_cast<int>(last) - *first + 1;
 }
 
@@ -959,6 +961,7 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
 
 void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started)
 {
+  int placed = -1;  // where this frame's check placed the robot (trackContradicted), if it did
   if (frame->query)
   {
     // Each frame may bring the evidence of another place; the track moves there once init_confirm_frames
@@ -971,23 +974,18 @@ void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started
     check_pending_ = 0;
     if (moveTrackOnConfirmation(&check_confirmation_, frame->informative, check_ring_, frame, match))
       return;
-    if (coast_fix_ >= 0)
-    {
-      // The check placed the robot where it can be (trackContradicted): this frame's answer, and the dead
-      // reckoning goes on from there.
-      coast_position_ = coast_fix_;
-      match->keyframe = coast_fix_;
-      run_position_ = -1.0;
-      return;
-    }
+    placed = coast_fix_;
   }
   else
   {
     ++check_pending_;  // a missed frame: no check, but its (featureless) row joins the next one's window
     check_confirmation_.update(-1, false, false);
   }
-  // A query that repeats the last view: the camera stood still, and so does the dead reckoning.
-  if (!frame->repeated)
+  // Placed by the check: this frame's answer, and the dead reckoning goes on from there. Else a query that
+  // repeats the last view: the camera stood still, and so does the dead reckoning.
+  if (placed >= 0)
+    coast_position_ = placed;
+  else if (!frame->repeated)
   {
     // Dead reckoning had already reached the last keyframe and the robot still moves on, showing new
     // views: it has left the route's end, and no position along the route is left to coast on (a robot
@@ -1188,12 +1186,6 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
     return false;
   const bool at_track =
       std::abs(map_stats_.run[elsewhere.keyframe] - map_stats_.run[track_keyframe]) <= params_.dtw.exclusion_radius;
-  // As a global search confirms a place: its confidence weighed by the distinct views among K rows, however
-  // few the check's window holds (weighed by its own 8 rows, the check while tracking moved the track to
-  // look-alike places of the synthetic routes: seed 4, within one 1.000 -> 0.787).
-  const double evidence =
-      std::min(1.0, static_cast<double>(ring->distinctViews(elsewhere.rows)) / std::max(1, params_.ring_buffer_rows));
-  const bool stands_out = matchConfidence(elsewhere, true, evidence) >= params_.confidence_threshold;
   if (state_ == State::kCoasting)
   {
     // Evidence placing the robot where it can be is no contradiction: the dead reckoning moves there. The
@@ -1202,10 +1194,9 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
     // that is better than the reckoned end by more than chance (a robot that stood still or sped up while
     // the images said little: dead reckoning at the cruise speed does not know). Asking the end next to the
     // reckoning to stand out as a place too measured a little lower (doc/evaluation_history.md).
-    const int64_t driven = static_cast<int64_t>(last_confident_) - elsewhere.keyframe;
-    const bool reachable =
-        driven <= params_.dtw.exclusion_radius &&
-        -driven <= static_cast<int64_t>(params_.dtw.max_step) * frames_since_confident_ + params_.dtw.exclusion_radius;
+    int reach_first = 0, reach_width = 0;
+    reachableEnds(last_confident_, frames_since_confident_, &reach_first, &reach_width, params_.dtw.exclusion_radius);
+    const bool reachable = elsewhere.keyframe >= reach_first && elsewhere.keyframe < reach_first + reach_width;
     const float margin =
         reachable ? trackEndCost(track_keyframe, params_.dtw.exclusion_radius, first, width) - elsewhere.cost : 0.0f;
     if (at_track || (reachable && margin > chanceMargin(rows)))  // (chanceMargin may run the DTW: after)
@@ -1216,8 +1207,13 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   }
   if (at_track)
     return false;  // the sequence still ends at the track's place
+  // As a global search confirms a place: its confidence weighed by the distinct views among K rows, however
+  // few the check's window holds (weighed by its own 8 rows, the check while tracking moved the track to
+  // look-alike places of the synthetic routes: seed 4, within one 1.000 -> 0.787).
+  const double evidence =
+      std::min(1.0, static_cast<double>(ring->distinctViews(elsewhere.rows)) / std::max(1, params_.ring_buffer_rows));
   contradicting_confidence_ = matchConfidence(elsewhere, false, evidence);
-  if (!stands_out)
+  if (matchConfidence(elsewhere, true, evidence) < params_.confidence_threshold)
     return false;  // no place stands out: weak evidence
   if (!params_.contradiction_chance_margin && state_ != State::kTracking)
     return true;  // coasting: the place that contradicts is published as it is (publish)
