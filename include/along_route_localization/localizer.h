@@ -153,8 +153,8 @@ struct LocalizerParams
   /// (calibratedConfidence; a logistic fit, Platt scaling). scripts/cross_validate fits both on real
   /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
   /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. Both dimensionless.
-  float calibration_offset = 0.700f;
-  float calibration_slope = 8.104f;
+  float calibration_offset = 0.651f;
+  float calibration_slope = 8.136f;
   /// Lost (global search again) when lost_after_frames of the last lost_window_frames informative
   /// frames were low-confidence (LossDetector). Featureless frames do not count, nor do copies of the
   /// last view (the camera standing still): they bring no evidence of another place, and a long stop at
@@ -175,9 +175,10 @@ struct LocalizerParams
   /// While lost, answer with the dead-reckoned keyframe (the last tracked one, moved on at the cruise speed
   /// since the loss) with confidence 0, never the unconfirmed guess of the global search. Off: the guess.
   bool dead_reckon_while_lost = false;
-  /// With loss_needs_contradiction: another place contradicts the track only when it also beats the track
-  /// by more than chanceMargin (the map's own statistics), not only by its place confidence.
-  bool contradiction_chance_margin = false;
+  /// Another place contradicts the track (a check while tracking, or while coasting) only when its
+  /// sequence also beats the track's end by more than this share of chanceMargin (a wrong stretch's margin
+  /// over another on this map, measured on load); 0: by its place confidence alone (the rule before).
+  double contradiction_margin_share = 0.6;
   int end_of_route_keyframes = 2;     ///< a match this close to the last keyframe reports kEndOfRoute
   /// A gap in the frames' stamps (FrameClock) is frames the camera missed: they go through skipFrames
   /// before the frame after the gap. Off for a camera triggered by distance travelled, whose gaps are stops.
@@ -423,7 +424,7 @@ private:
   /// Still tracking after the handler: the cruise speed's sample and the last match.
   void followTrack(const Frame& frame, int keyframe);
   /// The result of the frame: keyframe (contradicted: the place that contradicts, coasting or beating the
-  /// track by more than chanceMargin; lost: the global search's guess or, dead_reckon_while_lost, the
+  /// track by more than contradiction_margin_share of chanceMargin; lost: the global search's guess or, dead_reckon_while_lost, the
   /// dead-reckoned keyframe), confidence (0 while lost or contradicted), status, homing.
   LocalizationResult publish(const Frame& frame, int keyframe, double confidence);
 
@@ -508,8 +509,8 @@ private:
   /// How much cheaper per row, by chance, the best path at a wrong place of this map is than a stretch of
   /// track-sized ends at another wrong place, over `rows` rows: measured once per map and parameters on
   /// kChanceWindows stretches of the map's own keyframes taken as queries, their true places left out (the
-  /// largest margin seen). A contradicted frame while tracking publishes the place that contradicts only
-  /// above it; with contradiction_chance_margin, trackContradicted needs more than this to contradict.
+  /// largest margin seen). trackContradicted needs more than contradiction_margin_share of it to contradict
+  /// the track (0: no such test), and a contradicted frame while tracking publishes that place only then.
   float chanceMargin(int rows);
   /// map_stats_.chance_margins for every window of 1 to max(K, relocalization_rows) rows, in one pass.
   void measureChanceMargins();
@@ -618,7 +619,7 @@ private:
   GlobalConfirmation recent_confirmation_; // of those checks: another place, confirmed
   CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
   int contradicting_place_ = -1;         // the place the last trackContradicted found
-  bool contradiction_beats_chance_ = false;  // ... and beats the track's end by more than chanceMargin
+  bool contradiction_beats_chance_ = false;  // ... by more than contradiction_margin_share of chanceMargin
   double contradicting_confidence_ = 0.0;  // its margin confidence (matchConfidence, before calibration)
   GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed
   double coast_position_ = 0.0;          // kCoasting: the dead-reckoned keyframe

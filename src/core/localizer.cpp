@@ -252,7 +252,7 @@ bool Localizer::checksAgainstChance() const
   const bool dtw = params_.method == SequenceMethod::kOnlineDtw;
   const bool recent_check =
       params_.detect_kidnapping && dtw && std::min(params_.relocalization_rows, params_.ring_buffer_rows) > 0;
-  return recent_check || (dtw && params_.loss_needs_contradiction) || params_.contradiction_chance_margin;
+  return recent_check || (dtw && params_.loss_needs_contradiction) || params_.contradiction_margin_share > 0.0;
 }
 
 void Localizer::measureMap(bool parallel)
@@ -1026,8 +1026,8 @@ LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double c
   result.query_informative = frame.informative;
   result.confidence = confidence;
   // Contradicted (published lost), unless dead_reckon_while_lost: while coasting the place that contradicts;
-  // while tracking (recentCheck) that place where it beats the track by more than chance does on this map
-  // (chanceMargin), else the track's answer, until the checks confirm the other place.
+  // while tracking (recentCheck) that place where it beats the track by more than contradiction_margin_share
+  // of what chance does on this map (chanceMargin), else the track's answer, until the checks confirm it.
   if (frame.contradicted && !params_.dead_reckon_while_lost &&
       (state_ == State::kCoasting || contradiction_beats_chance_))
     result.keyframe = contradicting_place_;
@@ -1215,14 +1215,17 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   contradicting_confidence_ = matchConfidence(elsewhere, false, evidence);
   if (matchConfidence(elsewhere, true, evidence) < params_.confidence_threshold)
     return false;  // no place stands out: weak evidence
-  if (!params_.contradiction_chance_margin && state_ != State::kTracking)
+  const bool against_chance = params_.contradiction_margin_share > 0.0;
+  if (!against_chance && state_ != State::kTracking)
     return true;  // coasting: the place that contradicts is published as it is (publish)
-  // Better than the track's own end over the same rows by more than a wrong stretch of this map is by
-  // chance (chanceMargin; it uses the DTW too, so it comes after this check's own costs were read).
+  // Better than the track's own end over the same rows by more than contradiction_margin_share of what a
+  // wrong stretch of this map beats another by, by chance (chanceMargin; it uses the DTW too, so it comes
+  // after this check's own costs were read). On a repeat beside the taught line, places that beat a right
+  // track by less were look-alikes the checks confirmed (doc/results.md, "A repeat beside the taught line").
   const float margin =
       trackEndCost(track_keyframe, params_.dtw.max_step + params_.max_jump_ahead, first, width) - elsewhere.cost;
-  contradiction_beats_chance_ = margin > chanceMargin(rows);
-  return !params_.contradiction_chance_margin || contradiction_beats_chance_;
+  contradiction_beats_chance_ = margin > static_cast<float>(params_.contradiction_margin_share) * chanceMargin(rows);
+  return !against_chance || contradiction_beats_chance_;
 }
 
 float Localizer::trackEndCost(int track_keyframe, int ahead, int first, int width) const

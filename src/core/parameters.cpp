@@ -284,9 +284,10 @@ std::vector<ParameterSpec> makeTable()
   t.push_back(boolRow("loss_needs_contradiction", loc,
                       "When the loss detection fires, coast and lose the track only on evidence for another place",
                       FIELD(localizer.loss_needs_contradiction)));
-  t.push_back(boolRow("contradiction_chance_margin", loc,
-                      "Another place contradicts the track only by more than this map's chance margin",
-                      FIELD(localizer.contradiction_chance_margin)));
+  t.push_back(numberRow("contradiction_margin_share", loc, 0, 10, "",
+                        "Another place contradicts the track only by more than this share of the map's chance "
+                        "margin (0: by its place confidence alone)",
+                        FIELD(localizer.contradiction_margin_share)));
   t.push_back(boolRow("dead_reckon_while_lost", loc,
                       "While lost, answer the dead-reckoned keyframe instead of the global search's guess",
                       FIELD(localizer.dead_reckon_while_lost)));
