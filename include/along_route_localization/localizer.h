@@ -177,7 +177,7 @@ struct LocalizerParams
   bool dead_reckon_while_lost = false;
   /// Another place contradicts the track (a check while tracking, or while coasting) only when its
   /// sequence also beats the track's end by more than this share of chanceMargin (a wrong stretch's margin
-  /// over another on this map, measured on load); 0: by its place confidence alone (the rule before).
+  /// over another on this map, measured on load); 0: by its place confidence alone.
   double contradiction_margin_share = 0.6;
   int end_of_route_keyframes = 2;     ///< a match this close to the last keyframe reports kEndOfRoute
   /// A gap in the frames' stamps (FrameClock) is frames the camera missed: they go through skipFrames
@@ -424,8 +424,9 @@ private:
   /// Still tracking after the handler: the cruise speed's sample and the last match.
   void followTrack(const Frame& frame, int keyframe);
   /// The result of the frame: keyframe (contradicted: the place that contradicts, coasting or beating the
-  /// track by more than contradiction_margin_share of chanceMargin; lost: the global search's guess or, dead_reckon_while_lost, the
-  /// dead-reckoned keyframe), confidence (0 while lost or contradicted), status, homing.
+  /// track by more than contradiction_margin_share of chanceMargin; lost: the global search's guess or,
+  /// dead_reckon_while_lost, the dead-reckoned keyframe), confidence (0 while lost or contradicted), status,
+  /// homing.
   LocalizationResult publish(const Frame& frame, int keyframe, double confidence);
 
   /// The query shows the view of the last one that entered the ring buffer (stationary_ratio): the
