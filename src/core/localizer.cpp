@@ -247,12 +247,12 @@ void Localizer::measureMapStatisticsNow()
 
 bool Localizer::checksAgainstChance() const
 {
-  // recentCheck weighs a contradiction against chance; a check while coasting weighs the place it found
-  // against the reckoned one (and, with the ablation switch, a contradiction too).
+  // The two callers of trackContradicted: recentCheck weighs a contradiction against chance, a check while
+  // coasting the place it found against the reckoned one, and a contradiction too.
   const bool dtw = params_.method == SequenceMethod::kOnlineDtw;
   const bool recent_check =
       params_.detect_kidnapping && dtw && std::min(params_.relocalization_rows, params_.ring_buffer_rows) > 0;
-  return recent_check || (dtw && params_.loss_needs_contradiction) || params_.contradiction_margin_share > 0.0;
+  return recent_check || (dtw && params_.loss_needs_contradiction);
 }
 
 void Localizer::measureMap(bool parallel)
@@ -947,8 +947,8 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
     recent_checking_ = false;
     return;
   }
-  // Contradicted: published lost (at the track's answer, confidence 0) until the checks confirm the other
-  // place and the track moves there.
+  // Contradicted: published lost (at the place that contradicts, confidence 0; publish) until the checks
+  // confirm that place and the track moves there.
   frame->contradicted =
       trackContradicted(match->keyframe, recent_checking_ ? 1 + recent_pending_ : 0, check_window, &recent_ring_);
   recent_checking_ = true;
@@ -1025,9 +1025,9 @@ LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double c
   LocalizationResult result;
   result.query_informative = frame.informative;
   result.confidence = confidence;
-  // Contradicted (published lost), unless dead_reckon_while_lost: while coasting the place that contradicts;
-  // while tracking (recentCheck) that place where it beats the track by more than contradiction_margin_share
-  // of what chance does on this map (chanceMargin), else the track's answer, until the checks confirm it.
+  // Contradicted (published lost), unless dead_reckon_while_lost: the place that contradicts (while tracking,
+  // recentCheck, it beat the track's end by more than contradiction_margin_share of chanceMargin; with share
+  // 0, where it beat the track at all, else the track's answer), until the checks confirm it.
   if (frame.contradicted && !params_.dead_reckon_while_lost &&
       (state_ == State::kCoasting || contradiction_beats_chance_))
     result.keyframe = contradicting_place_;
@@ -1224,7 +1224,8 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   // track by less were look-alikes the checks confirmed (doc/results.md, "A repeat beside the taught line").
   const float margin =
       trackEndCost(track_keyframe, params_.dtw.max_step + params_.max_jump_ahead, first, width) - elsewhere.cost;
-  contradiction_beats_chance_ = margin > static_cast<float>(params_.contradiction_margin_share) * chanceMargin(rows);
+  contradiction_beats_chance_ =
+      margin > (against_chance ? static_cast<float>(params_.contradiction_margin_share) * chanceMargin(rows) : 0.0f);
   return !against_chance || contradiction_beats_chance_;
 }
 

@@ -2158,8 +2158,8 @@ TEST(Localizer, ACarriedRobotThatStandsStillStaysContradicted)
   // agree before the track moves. Then the robot stands at 156 for 20 frames: copies of one view, no new
   // evidence either way, so the last verdict stands: every one is published lost, confidence 0, where it
   // was published tracking the old place before (Nordland's kidnapped fold 2: 40 frames in a station),
-  // and at the place that contradicts (156: it beats the track by more than chance does on this map),
-  // where it was published at the old track's answer before. Once it drives on (157..) the checks confirm
+  // and at the place that contradicts (156: it beats the track's end by more than contradiction_margin_share
+  // of what chance does on this map), where it was published at the old track's answer before. Once it drives on (157..) the checks confirm
   // the new place and the track moves there.
   const auto map = syntheticMap(200);
   std::vector<int> keyframes;
