@@ -68,7 +68,8 @@ class CleanSlateTest(unittest.TestCase):
             fx.wait_for(lambda: rospy.get_param('/localizer/max_step', None) == 3, 30, 'max_step 3 from the file')
             fx.wait_for(lambda: rospy.get_param('/localizer/ring_buffer_rows', None) == 30, 30, 'the default K')
             self.assertFalse(rospy.has_param('/localizer/min_texture_ratio'))
-            self.assertEqual(rospy.get_param('/preprocessor/normalization'), 'divisive')
+            fx.wait_for(lambda: rospy.get_param('/preprocessor/normalization', None) == 'divisive', 30,
+                        'normalization divisive on the parameter server')
             # The misspelt name is named with the parameters the localizer reads, not a header file.
             text = '~ring_bufer_rows is not a parameter of the localizer and is ignored (did you mean ring_buffer_rows?)'
             fx.wait_for(lambda: self.rosout.matching(text, Log.WARN), 30, 'the warning about ring_bufer_rows')
@@ -79,11 +80,13 @@ class CleanSlateTest(unittest.TestCase):
             # What the file set is said once, with the value used; the bad value is named, the good ones used.
             self.assertTrue(self.rosout.matching('max_step 2 -> 3', Log.INFO))
             self.assertTrue(self.rosout.matching("method 'DTW' is not one of dtw | seqslam; keeping dtw", Log.WARN))
-            self.assertEqual(rospy.get_param('/localizer/method'), 'dtw')
+            fx.wait_for(lambda: rospy.get_param('/localizer/method', None) == 'dtw', 30, 'method dtw written back')
             self.assertTrue(self.rosout.matching('lost_window_frames 50000 is outside 1 .. 10000 frames; using 10000',
                                                  Log.WARN))
             self.assertTrue(self.rosout.matching('lost_window_frames 8 -> 10000', Log.INFO))
-            self.assertEqual(rospy.get_param('/localizer/lost_window_frames'), 10000)
+            # Written back by the reconfigure server, which may come after the log lines above.
+            fx.wait_for(lambda: rospy.get_param('/localizer/lost_window_frames', None) == 10000, 30,
+                        'lost_window_frames 10000 written back')
         finally:
             self.stop(process)
 
