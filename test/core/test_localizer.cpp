@@ -2728,6 +2728,79 @@ TEST(Localizer, AnotherPlaceContradictsTheTrackByMoreThanItsShareOfChanceOnThisM
   }
 }
 
+TEST(Localizer, WhileCoastingAnotherPlaceContradictsTheTrackByMoreThanItsShareOfChance)
+{
+  // The share of the test above, for the checks while the estimate coasts (coastStep -> trackContradicted).
+  // Tracked along keyframes 0..59 of a 200-keyframe route, the camera then shows 10 random views (weak
+  // evidence: they match nowhere, the loss detection fires and the estimate coasts on at the cruise speed,
+  // one keyframe a frame, status tracking), then the robot shows 150, 151, ... blended with other views
+  // (90-60 % its own): a place it cannot have driven to since keyframe 59, so only evidence for it moves the
+  // estimate there. On the map of distinct views the shares find it alike, 5 frames after it shows; on the
+  // map with a stretch seen twice the default share takes 10-12 frames (found from frame 86), the whole chance
+  // margin (share 1) not in 40 frames. Checking the share only while tracking, every share found it as share
+  // 0 does (measured with the coasting checks' margin test left out).
+  for (int repeat = 0; repeat < 2; ++repeat)
+  {
+    auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
+    for (int k = 0; k < 200; ++k)
+    {
+      const int view = repeat && k >= 100 && k < 140 ? k - 80 : k;
+      map->addKeyframe(synthetic::randomFrame(1000 + view), 1000000000LL * k);
+    }
+    for (const double own : { 0.9, 0.8, 0.7, 0.6 })
+    for (const double share : { 0.0, arl::LocalizerParams().contradiction_margin_share, 1.0 })
+    {
+      arl::LocalizerParams params;
+      params.contradiction_margin_share = share;
+      arl::Localizer localizer(map, params);
+      std::string marks;
+      int coasted_to = -1;
+      for (int i = 0; i < 110; ++i)
+      {
+        const int truth = i < 60 ? i : (i < 70 ? -1 : 150 + (i - 70));
+        cv::Mat frame = truth < 0 ? synthetic::randomFrame(90000 + i) : keyframeCopy(*map, truth);
+        if (i >= 70)
+          cv::addWeighted(map->keyframeMat(truth), own, synthetic::randomFrame(7000 + i), 1.0 - own, 0.0, frame);
+        const arl::LocalizationResult result = localizer.process(frame);
+        const bool right = truth >= 0 && std::abs(result.keyframe - truth) <= 1;
+        if (truth < 0)
+        {
+          EXPECT_NE(LocalizationStatus::kLost, result.status) << "frame " << i << ": weak evidence, not contrary";
+          marks += '-';
+          coasted_to = result.keyframe;
+          continue;
+        }
+        marks += result.status == LocalizationStatus::kLost ? (right ? 'l' : 'L') : (right ? '.' : 'x');
+        if (result.status == LocalizationStatus::kLost)
+        {
+          EXPECT_EQ(0.0, result.confidence) << "frame " << i;
+        }
+      }
+      const std::string label = std::string(repeat ? "a stretch seen twice" : "distinct views") + ", own " +
+                                std::to_string(own) + ", share " + std::to_string(share) + ": " + marks;
+      std::printf("%s\n", label.c_str());
+      EXPECT_EQ(std::string(60, '.'), marks.substr(0, 60)) << label;
+      EXPECT_NEAR(69, coasted_to, 1) << label << ": coasted on from keyframe 59 at one keyframe a frame";
+      EXPECT_EQ(std::string::npos, marks.find('L')) << label << ": contradicted frames answer the place";
+      EXPECT_EQ(std::string(4, 'x'), marks.substr(70, 4)) << label << ": the old place's estimate first";
+      if (repeat && share >= 1.0)
+      {
+        EXPECT_EQ(std::string::npos, marks.find('.', 70)) << label << ": not found with the whole margin";
+        continue;
+      }
+      // measured: the new place contradicts from frame 74-75 (lost there 4 frames), answered from 78-79; on
+      // the map with a stretch seen twice, with the default share, contradicts from 80-82, answered from 84-86
+      const size_t found_by = repeat && share > 0.0 ? 86 : 79;
+      if (repeat && share > 0.0)
+      {
+        EXPECT_EQ(std::string(10, 'x'), marks.substr(70, 10)) << label << ": 10 frames more than share 0";
+      }
+      EXPECT_NE(std::string::npos, marks.find('l', 70)) << label;
+      EXPECT_EQ(std::string(110 - found_by, '.'), marks.substr(found_by)) << label;
+    }
+  }
+}
+
 TEST(Localizer, TheChanceMarginsGiveTheSameAnswersMeasuredOnLoadOrOnFirstNeed)
 {
   // measureMapStatisticsNow (the nodelet and localize_offline, on load) against the first check that needs
