@@ -116,22 +116,29 @@ class SelectionTest(unittest.TestCase):
 
     @unittest.skipIf(built_executable("localize_offline") is None, "localize_offline not built (source the workspace)")
     def test_the_shipped_candidate_grids_name_parameters_in_range(self):
-        # doc/cv_core_parameters.txt and doc/cv_decision_parameters.txt, the grids doc/results.md reports:
+        # doc/cv_core_parameters.txt, doc/cv_decision_parameters.txt and doc/cv_ablations.txt, the grids
+        # doc/results.md reports:
         # every name one localize_offline takes, every value inside its range (a misspelt name or a value out
         # of range would be refused or corrected by the runs, and the figures would be those of another grid).
         help_text = subprocess.run([built_executable("localize_offline"), "--help-advanced"], stdout=subprocess.PIPE,
                                    stderr=subprocess.STDOUT, universal_newlines=True).stdout
         ranges = {m.group(1): (float(m.group(2)), float(m.group(3))) for m in
                   re.finditer(r"^    ([a-z_]+) = \S+  \(([-0-9.e]+) \.\. ([-0-9.e]+)", help_text, re.M)}
+        switches = set(re.findall(r"^    ([a-z_]+) = \S+  \(true \| false\)", help_text, re.M))
         self.assertIn("filter_window", ranges)
+        self.assertIn("column_centering", switches)
         doc = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "doc")
-        for file_name, count in (("cv_core_parameters.txt", 18), ("cv_decision_parameters.txt", 19)):
+        for file_name, count in (("cv_core_parameters.txt", 18), ("cv_decision_parameters.txt", 19),
+                                 ("cv_ablations.txt", 19)):
             with open(os.path.join(doc, file_name)) as f:
                 candidates = cross_validate.parse_candidates(f.read())
             self.assertEqual(len(candidates), count, file_name)
             for name, assignments in candidates[1:]:
                 for assignment in assignments:
                     key, value = assignment.split("=", 1)
+                    if value in ("true", "false"):
+                        self.assertTrue(key in switches, "%s, %s: %s is not a switch" % (file_name, name, key))
+                        continue
                     self.assertTrue(key in ranges, "%s, %s: %s is not a parameter" % (file_name, name, key))
                     self.assertTrue(ranges[key][0] <= float(value) <= ranges[key][1],
                                     "%s, %s: %s is out of range" % (file_name, name, assignment))
