@@ -352,6 +352,9 @@ public:
   float stationaryChange() const { return map_stats_.stationary_change; }
   /// Whether global searches compare halved images on this map (coarse_search_keyframes).
   bool coarseGlobalSearch() const { return coarse_difference_ != nullptr; }
+  /// [rows]: the chance margin over that many rows (chanceMargin), 1 to max(K, relocalization_rows); empty
+  /// until measured (measureMapStatisticsNow, or the first check that needs it).
+  const std::vector<float>& chanceMargins() const { return map_stats_.chance_margins; }
 
   /// The paper's figure 4 (debug_image.h) for keyframes [first, first + width), scale px per cell, with
   /// the last path, match and status (no confidence: the localizer nodelet renders with its result's). BGR8.

@@ -2802,6 +2802,29 @@ TEST(Localizer, WhileCoastingAnotherPlaceContradictsTheTrackByMoreThanItsShareOf
   }
 }
 
+TEST(Localizer, OnAShortMapEveryWindowHasAChanceMargin)
+{
+  // A short map of distinct views (random keyframes), K = 30: over a long window a stretch's true place and
+  // what eq. 2 spread of it (contrast_window + exclusion_radius + rows x max_step keyframes either side)
+  // cover most of the map, so few or no stretches leave a wrong place to measure chance on. Such a window
+  // takes the margin of the next shorter one: every window's margin is positive, as on a long map, instead
+  // of 0 (with 0, any place that stands out contradicts the track, however little it beats it by).
+  for (const int n : { 100, 149, 1000 })
+  {
+    arl::Localizer localizer(syntheticMap(n), arl::LocalizerParams());
+    localizer.measureMapStatisticsNow();
+    const std::vector<float>& margins = localizer.chanceMargins();
+    ASSERT_EQ(static_cast<size_t>(arl::LocalizerParams().ring_buffer_rows + 1), margins.size()) << n;
+    std::string printed;
+    for (size_t rows = 1; rows < margins.size(); ++rows)
+    {
+      EXPECT_GT(margins[rows], 0.0f) << n << " keyframes, " << rows << " rows";
+      printed += " " + std::to_string(margins[rows]).substr(0, 5);
+    }
+    std::printf("%d keyframes:%s\n", n, printed.c_str());
+  }
+}
+
 TEST(Localizer, TheChanceMarginsGiveTheSameAnswersMeasuredOnLoadOrOnFirstNeed)
 {
   // measureMapStatisticsNow (the nodelet and localize_offline, on load) against the first check that needs
