@@ -2665,6 +2665,43 @@ TEST(StandstillDetector, SaysWhatTheRobotDidBetweenTwoFrames)
   EXPECT_EQ(arl::RobotMotion::kStoodStill, detector.sinceLastFrame(5.4));
 }
 
+namespace
+{
+
+/// 200 random keyframes; with `seen_twice`, keyframes 100-139 show 20-59 again (away from 0-59 and 150+).
+std::shared_ptr<arl::RouteMap> mapWithAStretchSeenTwice(bool seen_twice)
+{
+  auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
+  for (int k = 0; k < 200; ++k)
+  {
+    const int view = seen_twice && k >= 100 && k < 140 ? k - 80 : k;
+    map->addKeyframe(synthetic::randomFrame(1000 + view), 1000000000LL * k);
+  }
+  return map;
+}
+
+/// Frame `i` of a robot carried to keyframe k: its view blended with another, `own` of it its own.
+cv::Mat carriedView(const arl::RouteMap& map, int k, double own, int i)
+{
+  cv::Mat frame;
+  cv::addWeighted(map.keyframeMat(k), own, synthetic::randomFrame(7000 + i), 1.0 - own, 0.0, frame);
+  return frame;
+}
+
+/// . right (within one keyframe of the truth), x wrong; l, L the same published lost.
+char trackMark(const arl::LocalizationResult& result, bool right)
+{
+  return result.status == LocalizationStatus::kLost ? (right ? 'l' : 'L') : (right ? '.' : 'x');
+}
+
+std::string shareLabel(bool seen_twice, double own, double share, const std::string& marks)
+{
+  return std::string(seen_twice ? "a stretch seen twice" : "distinct views") + ", own " + std::to_string(own) +
+         ", share " + std::to_string(share) + ": " + marks;
+}
+
+}  // namespace
+
 TEST(Localizer, AnotherPlaceContradictsTheTrackByMoreThanItsShareOfChanceOnThisMap)
 {
   // Tracked along keyframes 0..59 of a 200-keyframe route, the robot is carried to 150 and shows 150,
@@ -2678,14 +2715,9 @@ TEST(Localizer, AnotherPlaceContradictsTheTrackByMoreThanItsShareOfChanceOnThisM
   // from both places) chance is large: at the default share the carried robot is still found as soon with
   // 80-90 % of its own view, 5 frames later with 60-70 %; with the whole chance margin (share 1) its evidence
   // is not enough for 20-25 frames or more.
-  for (int repeat = 0; repeat < 2; ++repeat)
+  for (const bool repeat : { false, true })
   {
-    auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
-    for (int k = 0; k < 200; ++k)
-    {
-      const int view = repeat && k >= 100 && k < 140 ? k - 80 : k;
-      map->addKeyframe(synthetic::randomFrame(1000 + view), 1000000000LL * k);
-    }
+    const auto map = mapWithAStretchSeenTwice(repeat);
     for (const double own : { 0.9, 0.8, 0.7, 0.6 })
     for (const double share : { 0.0, arl::LocalizerParams().contradiction_margin_share, 1.0 })
     {
@@ -2696,19 +2728,15 @@ TEST(Localizer, AnotherPlaceContradictsTheTrackByMoreThanItsShareOfChanceOnThisM
       for (int i = 0; i < 90; ++i)
       {
         const int truth = i < 60 ? i : 150 + (i - 60);
-        cv::Mat frame = keyframeCopy(*map, truth);
-        if (i >= 60)
-          cv::addWeighted(map->keyframeMat(truth), own, synthetic::randomFrame(7000 + i), 1.0 - own, 0.0, frame);
+        const cv::Mat frame = i < 60 ? keyframeCopy(*map, truth) : carriedView(*map, truth, own, i);
         const arl::LocalizationResult result = localizer.process(frame);
-        const bool right = std::abs(result.keyframe - truth) <= 1;
-        marks += result.status == LocalizationStatus::kLost ? (right ? 'l' : 'L') : (right ? '.' : 'x');
+        marks += trackMark(result, std::abs(result.keyframe - truth) <= 1);
         if (result.status == LocalizationStatus::kLost)
         {
           EXPECT_EQ(0.0, result.confidence) << "frame " << i;
         }
       }
-      const std::string label = std::string(repeat ? "a stretch seen twice" : "distinct views") + ", own " +
-                                std::to_string(own) + ", share " + std::to_string(share) + ": " + marks;
+      const std::string label = shareLabel(repeat, own, share, marks);
       std::printf("%s\n", label.c_str());
       EXPECT_EQ(std::string(60, '.'), marks.substr(0, 60)) << label;
       EXPECT_EQ(std::string::npos, marks.find('L')) << label << ": contradicted frames answer the place";
@@ -2740,14 +2768,9 @@ TEST(Localizer, WhileCoastingAnotherPlaceContradictsTheTrackByMoreThanItsShareOf
   // with share 0; answered right from frame 86 at the latest), the whole chance margin (share 1) not in 40
   // frames. Checking the share only while tracking, every share found it as share 0 does (measured with the
   // coasting checks' margin test left out).
-  for (int repeat = 0; repeat < 2; ++repeat)
+  for (const bool repeat : { false, true })
   {
-    auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
-    for (int k = 0; k < 200; ++k)
-    {
-      const int view = repeat && k >= 100 && k < 140 ? k - 80 : k;
-      map->addKeyframe(synthetic::randomFrame(1000 + view), 1000000000LL * k);
-    }
+    const auto map = mapWithAStretchSeenTwice(repeat);
     for (const double own : { 0.9, 0.8, 0.7, 0.6 })
     for (const double share : { 0.0, arl::LocalizerParams().contradiction_margin_share, 1.0 })
     {
@@ -2759,11 +2782,9 @@ TEST(Localizer, WhileCoastingAnotherPlaceContradictsTheTrackByMoreThanItsShareOf
       for (int i = 0; i < 110; ++i)
       {
         const int truth = i < 60 ? i : (i < 70 ? -1 : 150 + (i - 70));
-        cv::Mat frame = truth < 0 ? synthetic::randomFrame(90000 + i) : keyframeCopy(*map, truth);
-        if (i >= 70)
-          cv::addWeighted(map->keyframeMat(truth), own, synthetic::randomFrame(7000 + i), 1.0 - own, 0.0, frame);
+        const cv::Mat frame = truth < 0 ? synthetic::randomFrame(90000 + i) :
+                                          i < 70 ? keyframeCopy(*map, truth) : carriedView(*map, truth, own, i);
         const arl::LocalizationResult result = localizer.process(frame);
-        const bool right = truth >= 0 && std::abs(result.keyframe - truth) <= 1;
         if (truth < 0)
         {
           EXPECT_NE(LocalizationStatus::kLost, result.status) << "frame " << i << ": weak evidence, not contrary";
@@ -2771,14 +2792,13 @@ TEST(Localizer, WhileCoastingAnotherPlaceContradictsTheTrackByMoreThanItsShareOf
           coasted_to = result.keyframe;
           continue;
         }
-        marks += result.status == LocalizationStatus::kLost ? (right ? 'l' : 'L') : (right ? '.' : 'x');
+        marks += trackMark(result, std::abs(result.keyframe - truth) <= 1);
         if (result.status == LocalizationStatus::kLost)
         {
           EXPECT_EQ(0.0, result.confidence) << "frame " << i;
         }
       }
-      const std::string label = std::string(repeat ? "a stretch seen twice" : "distinct views") + ", own " +
-                                std::to_string(own) + ", share " + std::to_string(share) + ": " + marks;
+      const std::string label = shareLabel(repeat, own, share, marks);
       std::printf("%s\n", label.c_str());
       EXPECT_EQ(std::string(60, '.'), marks.substr(0, 60)) << label;
       EXPECT_NEAR(69, coasted_to, 1) << label << ": coasted on from keyframe 59 at one keyframe a frame";
@@ -2843,9 +2863,7 @@ TEST(Localizer, TheChanceMarginsGiveTheSameAnswersMeasuredOnLoadOrOnFirstNeed)
   for (int i = 0; i < 90; ++i)
   {
     const int truth = i < 60 ? i : 150 + (i - 60);
-    cv::Mat frame = keyframeCopy(*map, truth);
-    if (i >= 60)
-      cv::addWeighted(map->keyframeMat(truth), 0.8, synthetic::randomFrame(7000 + i), 0.2, 0.0, frame);
+    const cv::Mat frame = i < 60 ? keyframeCopy(*map, truth) : carriedView(*map, truth, 0.8, i);
     const arl::LocalizationResult a = on_load.process(frame);
     const arl::LocalizationResult b = on_need.process(frame);
     ASSERT_EQ(a.status, b.status) << "frame " << i;
