@@ -15,7 +15,10 @@ collapse: the query washed out while the map is not), so:
     not send the answer far away: measured on other seeds, doc/results.md).
 """
 
+import contextlib
 import csv
+import io
+import json
 import os
 import shutil
 import subprocess
@@ -164,6 +167,71 @@ class HardConditionsTrackTest(unittest.TestCase):
 
     def test_contrast_collapse_no_jump_and_regained(self):
         self.check_no_jump_and_regained('contrast-collapse')
+
+
+@unittest.skipIf(RUNNER is None or cv2 is None,
+                 'localize_offline not built in a sourced workspace (source devel/setup.bash), or no cv2')
+class SetReachesTheRunnerTest(unittest.TestCase):
+    """run_hard_conditions --set NAME=VALUE: every run of localize_offline gets the parameter."""
+
+    @classmethod
+    def setUpClass(cls):
+        # A short route without conditions (40 teach frames at 160x120, a few seconds), where --reuse finds it.
+        cls.work = tempfile.mkdtemp(prefix='hard_conditions_set_')
+        done = subprocess.run([sys.executable, os.path.join(SCRIPTS_DIR, 'generate_route'), '--output',
+                               os.path.join(cls.work, 'seed1_none'), '--seed', '1', '--teach-frames', '40',
+                               '--width', '160', '--height', '120', '--images', '--no-bags', '--progress', 'off'],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True, timeout=300)
+        if done.returncode != 0:
+            raise RuntimeError('generate_route failed: %s' % done.stderr)
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.work, ignore_errors=True)
+
+    def run_main(self, *sets):
+        """run_hard_conditions.main on the route, with `--set` for each of sets: (exit code, stdout, stderr,
+        the JSON entry of the run, the first answer's keyframe)."""
+        json_path = os.path.join(self.work, 'figures.json')
+        argv = ['--work', self.work, '--seeds', '1', '--sets', 'none', '--reuse', '--localize-offline', RUNNER,
+                '--output-json', json_path]
+        for assignment in sets:
+            argv += ['--set', assignment]
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = run_hard_conditions.main(argv)
+        if code != 0:
+            return code, out.getvalue(), err.getvalue(), None, None
+        with open(json_path) as f:
+            entry = json.load(f)[0]
+        with open(os.path.join(self.work, 'seed1_none', 'results.csv'), newline='') as f:
+            first = int(next(csv.DictReader(f))['keyframe'])
+        return code, out.getvalue(), err.getvalue(), entry, first
+
+    def test_a_known_start_elsewhere_reaches_the_localizer(self):
+        # The repeat starts at teach frame 0, and so does the localizer by default (start_keyframe 0): its
+        # first answer is keyframe 0. Told the robot starts at keyframe 20 and only moves as it drives
+        # (detect_kidnapping false), its first answer is keyframe 20, the start it was given.
+        code, out, _, entry, first = self.run_main()
+        self.assertEqual(code, 0)
+        self.assertEqual((entry['parameters'], first), ([], 0))
+        self.assertNotIn('localize_offline with', out)
+        code, out, _, entry, first = self.run_main('start_keyframe=20', 'detect_kidnapping=false')
+        self.assertEqual(code, 0)
+        self.assertEqual((entry['parameters'], first), (['start_keyframe=20', 'detect_kidnapping=false'], 20))
+        self.assertIn('localize_offline with start_keyframe=20, detect_kidnapping=false', out)
+
+    def test_an_unknown_parameter_is_the_runner_s_error(self):
+        code, _, err, _, _ = self.run_main('no_such_parameter=1')
+        self.assertEqual(code, 2)
+        self.assertIn("unknown parameter 'no_such_parameter'", err)
+
+    def test_a_set_without_a_value_is_refused(self):
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:
+            run_hard_conditions.main(['--work', self.work, '--reuse', '--set', 'min_texture_ratio'])
+        self.assertEqual(raised.exception.code, 2)
+        self.assertIn("--set takes NAME=VALUE, got 'min_texture_ratio'", err.getvalue())
 
 
 if __name__ == '__main__':
