@@ -42,6 +42,16 @@ REGAIN_FRAMES = WINDOW_FRAMES // 2
 STEP_M = 0.5                # generate_route's default --step-m: metres per keyframe
 
 
+def render_route(output, teach_frames, width, height, *extra):
+    """generate_route --seed 1 into `output` as images (no bags), `extra` its further arguments."""
+    done = subprocess.run([sys.executable, os.path.join(SCRIPTS_DIR, 'generate_route'), '--output', output,
+                           '--seed', '1', '--teach-frames', str(teach_frames), '--width', str(width), '--height',
+                           str(height), '--images', '--no-bags', '--progress', 'off'] + list(extra),
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True, timeout=300)
+    if done.returncode != 0:
+        raise RuntimeError('generate_route failed: %s' % done.stderr)
+
+
 class ScoreTest(unittest.TestCase):
     """run_hard_conditions.score on hand-made rows."""
 
@@ -92,12 +102,7 @@ class HardConditionsTrackTest(unittest.TestCase):
     def setUpClass(cls):
         cls.tmp = tempfile.mkdtemp(prefix='hard_conditions_test_')
         route = os.path.join(cls.tmp, 'route')
-        done = subprocess.run([sys.executable, os.path.join(SCRIPTS_DIR, 'generate_route'), '--output', route,
-                               '--seed', '1', '--teach-frames', '200', '--width', '320', '--height', '240',
-                               '--images', '--no-bags', '--conditions', 'all', '--progress', 'off'],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True, timeout=300)
-        if done.returncode != 0:
-            raise RuntimeError('generate_route failed: %s' % done.stderr)
+        render_route(route, 200, 320, 240, '--conditions', 'all')
         results = os.path.join(cls.tmp, 'results.csv')
         done = subprocess.run([RUNNER, '--quiet', '--map', os.path.join(route, 'teach_images'), '--query',
                                os.path.join(route, 'repeat_images'), '--output', results],
@@ -178,12 +183,7 @@ class SetReachesTheRunnerTest(unittest.TestCase):
     def setUpClass(cls):
         # A short route without conditions (40 teach frames at 160x120, a few seconds), where --reuse finds it.
         cls.work = tempfile.mkdtemp(prefix='hard_conditions_set_')
-        done = subprocess.run([sys.executable, os.path.join(SCRIPTS_DIR, 'generate_route'), '--output',
-                               os.path.join(cls.work, 'seed1_none'), '--seed', '1', '--teach-frames', '40',
-                               '--width', '160', '--height', '120', '--images', '--no-bags', '--progress', 'off'],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True, timeout=300)
-        if done.returncode != 0:
-            raise RuntimeError('generate_route failed: %s' % done.stderr)
+        render_route(os.path.join(cls.work, 'seed1_none'), 40, 160, 120)
 
     @classmethod
     def tearDownClass(cls):
