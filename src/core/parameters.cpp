@@ -156,8 +156,8 @@ std::vector<ParameterSpec> makeTable()
   t.push_back(user(numberRow("max_step", loc, 1, 16, "keyframes per frame",
                              "s: most keyframes advanced per frame, DTW steps (1,0)..(1,s)", FIELD(localizer.dtw.max_step))));
   t.push_back(user(numberRow("max_shift_px", loc, 0, 127, "px",
-                             "m: horizontal shift search range in the preprocessed image (corrected to leave a compared "
-                             "strip)",
+                             "m: horizontal shift search range in the preprocessed image (below half its width; the "
+                             "localizer nodelet corrects a larger value, localize_offline refuses it)",
                              FIELD(localizer.max_shift_px))));
   t.push_back(numberRow("shift_bands", loc, 1, 16, "bands",
                         "Horizontal bands of the image each shifted on its own in the shift search (1: one shift; 2 "
@@ -562,8 +562,17 @@ std::string checkRanges(ParameterGroup group, const ParameterSet& params)
   {
     if (spec.group != group || spec.type == ParameterType::kChoice || spec.type == ParameterType::kBool)
       continue;
+    // The value as stored: a float field holds the nearest float to what was given, which may lie just
+    // outside a bound that has no exact float (0.99 is stored as 0.9900000095), so each bound is compared
+    // as stored too.
     const double value = spec.get_number(params);
-    if (!spec.inRange(value))
+    const auto stored = [&](double bound) {
+      return std::abs(bound) < 3.0e38 ? static_cast<double>(static_cast<float>(bound)) : bound;
+    };
+    const bool within_stored_bounds = spec.type == ParameterType::kDouble &&
+                                      value >= std::min(spec.min, stored(spec.min)) &&
+                                      value <= std::max(spec.max, stored(spec.max));
+    if (!spec.inRange(value) && !within_stored_bounds)
       return spec.name + " must be in " + spec.rangeText() + ", got " +
              formatNumber(value, spec.type == ParameterType::kInt && value == std::floor(value));
   }
@@ -736,6 +745,12 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
       skipped_section = false;
     if (!skipped_section)
       entries->push_back({ name, value, number });
+  }
+  if (in.bad())  // e.g. a folder: it opens, but reading it fails
+  {
+    entries->clear();
+    *error = "cannot read parameter file '" + path + "' (a folder, or a read error)";
+    return false;
   }
   return true;
 }

@@ -58,6 +58,17 @@ TEST_F(ParameterFile, BooleansInEveryFormRosparamReads)
   EXPECT_NE(std::string::npos, load("parallel: maybe\n").find("'maybe'"));
 }
 
+TEST(ParameterFileRead, AFolderIsRefusedAsUnreadable)
+{
+  // A folder opens as a stream on Linux, then every read fails: it was taken as an empty file and the
+  // run went on with the defaults.
+  std::vector<arl::ParameterEntry> entries;
+  std::string error;
+  EXPECT_FALSE(arl::readParameterFile(::testing::TempDir(), &entries, &error));
+  EXPECT_EQ("cannot read parameter file '" + ::testing::TempDir() + "' (a folder, or a read error)", error);
+  EXPECT_TRUE(entries.empty());
+}
+
 TEST_F(ParameterFile, ANameGivenTwiceIsAnErrorNamingBothLines)
 {
   const std::string error = load("max_step: 3\n# comment\nlocalizer:\n  max_step: 4\n");
@@ -208,6 +219,33 @@ TEST(ParameterTable, ValidateRefusesEveryNumberOutsideItsTableRange)
             params.validate());
   params.min_init_frames = 4;
   EXPECT_EQ("", params.validate());
+}
+
+TEST(ParameterTable, ValidateTakesEveryNumberAtEitherEndOfItsTableRange)
+{
+  // A float field holds the nearest float to a bound given exactly (row_weight_range 0.99 is stored as
+  // 0.9900000095): validate() refused the documented most ("must be in 0 .. 0.99, got 0.99"). At its least
+  // and its most, every other parameter at its default, no number is out of its range (a rule between
+  // two parameters may still object: lost_after_frames 10000 is more than lost_window_frames 8).
+  for (const arl::ParameterSpec& spec : arl::parameterTable())
+  {
+    if (spec.group == arl::ParameterGroup::kMapRecorder || spec.type == arl::ParameterType::kChoice ||
+        spec.type == arl::ParameterType::kBool)
+      continue;
+    for (const double value : { spec.min, spec.max })
+    {
+      arl::ParameterSet params;
+      spec.set_number(&params, value);
+      const std::string error = spec.group == arl::ParameterGroup::kLocalizer     ? params.localizer.validate() :
+                                spec.group == arl::ParameterGroup::kRouteFollower ? params.follower.validate() :
+                                                                                    params.preprocessing.validate();
+      EXPECT_EQ(std::string::npos, error.find(spec.name + " must be in " + spec.rangeText()))
+          << spec.name << " " << value << ": " << error;
+    }
+  }
+  arl::ParameterSet params;
+  EXPECT_EQ("", arl::setParameterChecked("row_weight_range", "0.99", &params));
+  EXPECT_EQ("", params.localizer.validate());
 }
 
 TEST(ParameterTable, CheckedValuesAreCorrectedIntoTheRangeOrRefusedByName)
