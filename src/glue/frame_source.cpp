@@ -12,6 +12,7 @@
 
 #include <boost/filesystem.hpp>
 #include <cv_bridge/cv_bridge.h>
+#include <ros/exception.h>
 #include <opencv2/imgcodecs.hpp>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
@@ -164,44 +165,60 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
   Preprocessor preprocessor(params);
   std::vector<cv::Mat> frames;
   size_t clipped_frames = 0, enlarged_frames = 0;
-  for (const rosbag::MessageInstance& m : view)
+  // rosbag's words for a damaged message ("Buffer Overrun", "Unknown connection ID: 255") name neither the
+  // file nor the message: said here with both.
+  const auto damaged = [&](size_t position, const std::exception& e) {
+    return std::runtime_error("bag '" + path + "' is damaged at message " + std::to_string(position) + " of topic '" +
+                              image_topic + "' (rosbag says: " + e.what() + ")" +
+                              (position > 0 ? "; the " + std::to_string(position) +
+                                                  " messages before it read well (`rosbag filter` can copy them)" :
+                                              std::string()));
+  };
+  try
   {
-    // Which message, for every error below: the bag, the topic, its 0-based position there, its stamp.
-    const size_t position = frames.size();
-    const auto where = [&] {
-      std::ostringstream text;
-      text << "'" << path << "', topic '" << image_topic << "', message " << position << " (bag time "
-           << m.getTime() << ")";
-      return text.str();
-    };
-    const sensor_msgs::Image::ConstPtr msg = m.instantiate<sensor_msgs::Image>();
-    if (!msg)
-      throw std::runtime_error(where() + ": not a sensor_msgs/Image but " + m.getDataType());
-    PixelFormat format;
-    std::string problem;
-    if (imageMessageProblem(*msg, &format, &problem) != ImageProblem::kNone)
-      throw std::runtime_error(where() + ": " + problem);
-    try
+    for (const rosbag::MessageInstance& m : view)
     {
-      const cv_bridge::CvImageConstPtr image = cv_bridge::toCvShare(msg);
-      std::string warning;
-      if (format == PixelFormat::kMono32F && floatOutsideUnitRange(image->image, &warning) && clipped_frames++ == 0)
-        std::cerr << "warning: " << where() << ": " << warning << " (scale the images to [0, 1]); "
-                  << "the bag's other such frames are counted, not named\n";
-      if (inputSmallerThanOutput(image->image.cols, image->image.rows, params, &warning) && enlarged_frames++ == 0)
-        std::cerr << "warning: " << where() << ": a " << msg->width << "x" << msg->height << " image " << warning
-                  << "; the bag's other such frames are counted, not named\n";
-      frames.emplace_back();
-      preprocessor.process(image->image, format, frames.back());
+      // Which message, for every error below: the bag, the topic, its 0-based position there, its stamp.
+      const size_t position = frames.size();
+      const auto where = [&] {
+        std::ostringstream text;
+        text << "'" << path << "', topic '" << image_topic << "', message " << position << " (bag time "
+             << m.getTime() << ")";
+        return text.str();
+      };
+      const sensor_msgs::Image::ConstPtr msg = m.instantiate<sensor_msgs::Image>();
+      if (!msg)
+        throw std::runtime_error(where() + ": not a sensor_msgs/Image but " + m.getDataType());
+      PixelFormat format;
+      std::string problem;
+      if (imageMessageProblem(*msg, &format, &problem) != ImageProblem::kNone)
+        throw std::runtime_error(where() + ": " + problem);
+      try
+      {
+        const cv_bridge::CvImageConstPtr image = cv_bridge::toCvShare(msg);
+        std::string warning;
+        if (format == PixelFormat::kMono32F && floatOutsideUnitRange(image->image, &warning) && clipped_frames++ == 0)
+          std::cerr << "warning: " << where() << ": " << warning << " (scale the images to [0, 1]); "
+                    << "the bag's other such frames are counted, not named\n";
+        if (inputSmallerThanOutput(image->image.cols, image->image.rows, params, &warning) && enlarged_frames++ == 0)
+          std::cerr << "warning: " << where() << ": a " << msg->width << "x" << msg->height << " image " << warning
+                    << "; the bag's other such frames are counted, not named\n";
+        frames.emplace_back();
+        preprocessor.process(image->image, format, frames.back());
+      }
+      catch (const std::exception& e)  // PreprocessingError (e.g. NaN pixels), cv_bridge::Exception
+      {
+        throw std::runtime_error(where() + ": " + e.what());
+      }
+      if (stamps_ns)
+        stamps_ns->push_back(static_cast<int64_t>(msg->header.stamp.toNSec()));
+      if (progress)
+        progress(frames.size(), view.size());
     }
-    catch (const std::exception& e)  // PreprocessingError (e.g. NaN pixels), cv_bridge::Exception
-    {
-      throw std::runtime_error(where() + ": " + e.what());
-    }
-    if (stamps_ns)
-      stamps_ns->push_back(static_cast<int64_t>(msg->header.stamp.toNSec()));
-    if (progress)
-      progress(frames.size(), view.size());
+  }
+  catch (const ros::Exception& e)  // reading or decoding a message: rosbag's and the deserializer's (not ours)
+  {
+    throw damaged(frames.size(), e);
   }
   if (clipped_frames > 1)
     std::cerr << "warning: '" << path << "', topic '" << image_topic << "': " << clipped_frames << " of "
@@ -212,7 +229,7 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
   return frames;
 }
 
-/// A recorder map file is a bag with the map's parameter topic. The map when `path` is one, else null.
+/// A recorder map file is a bag with the map's own topics (map_io.h). The map when `path` is one, else null.
 std::shared_ptr<RouteMap> readIfMapFile(const std::string& path)
 {
   rosbag::Bag bag;
@@ -236,7 +253,11 @@ std::shared_ptr<RouteMap> readIfMapFile(const std::string& path)
       return nullptr;
     }
   }
-  rosbag::View view(bag, rosbag::TopicQuery(kMapPreprocessingTopic));
+  // A map is known by any of its own topics (relative names, which no recorded topic has): one that lost
+  // its parameters (a damaged index, a `rosbag filter`) is refused by readMap, not preprocessed again as
+  // an image bag.
+  rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{ kMapPreprocessingTopic, kMapKeyframesTopic,
+                                                                      kMapInfoTopic }));
   if (view.size() == 0)
     return nullptr;
   bag.close();
@@ -282,6 +303,27 @@ std::vector<cv::Mat> loadPreprocessedFrames(const std::string& path, const std::
     if (stamps_ns)
       stamps_ns->assign(files.size(), 0);
     return preprocessFiles(files, params, progress);
+  }
+  if (const std::shared_ptr<RouteMap> map = readIfMapFile(path))
+  {
+    // A map file's keyframes are preprocessed already: used as they are, when made as these frames must be.
+    if (!(map->params() == params))
+      throw std::runtime_error("the map file '" + path + "' was made with other preprocessing parameters than " +
+                               "these frames need (" + preprocessingDifference(map->params(), params) +
+                               ", file vs needed); give the images instead, to preprocess them anew");
+    std::vector<cv::Mat> frames;
+    frames.reserve(map->size());
+    for (size_t i = 0; i < map->size(); ++i)
+    {
+      frames.push_back(map->keyframeMat(i).clone());
+      if (stamps_ns)
+        stamps_ns->push_back(map->stampNs(i));
+      if (progress)
+        progress(i + 1, map->size());
+    }
+    if (frames.empty())
+      throw std::runtime_error("the map file '" + path + "' holds no keyframes");
+    return frames;
   }
   return preprocessBag(path, topic, params, stamps_ns, progress);
 }

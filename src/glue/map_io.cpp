@@ -524,9 +524,9 @@ BagFileHead bagFileHead(const std::string& path)
     return BagFileHead::kEmpty;
   if (head == magic)
     return BagFileHead::kRosbag2;
-  if (head.compare(0, 9, "#ROSBAG V") == 0)
-    return BagFileHead::kOtherVersion;
-  return magic.compare(0, head.size(), head) == 0 ? BagFileHead::kCutInHeader : BagFileHead::kNotABag;
+  if (magic.compare(0, head.size(), head) == 0)
+    return BagFileHead::kCutInHeader;  // a start of the 2.0 header, cut ("#ROSBAG V2.0" without its newline)
+  return head.compare(0, 9, "#ROSBAG V") == 0 ? BagFileHead::kOtherVersion : BagFileHead::kNotABag;
 }
 
 RouteMap readMap(const std::string& path, std::map<int, TaughtMotion>* motion)

@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <climits>
+#include <cstdlib>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -46,7 +48,8 @@ void usage(std::ostream& out, bool with_advanced = false)
          "       localize_offline --help | --help-advanced\n"
          "  PATH: a folder of images (sorted by file name), a bag with an image topic, or a map file\n"
          "        written by the map recorder (its stored preprocessing parameters are used; any given\n"
-         "        with --params or --set must agree with them).\n"
+         "        with --params or --set must agree with them; as --query, its keyframes are the queries,\n"
+         "        used as stored). No output may be written inside an input folder.\n"
          "  --save-map: also write the loaded map as a map file (the recorder's format: for the localizer\n"
          "        nodelet, or a later --map that skips decoding and preprocessing the images).\n"
          "  --params: YAML of 'name: value' lines, flat or in the launch files' sections (preprocessor:,\n"
@@ -128,6 +131,24 @@ bool sameFile(const std::string& a, const std::string& b)
 {
   struct stat sa, sb;
   return stat(a.c_str(), &sa) == 0 && stat(b.c_str(), &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+// Whether writing `path` would put a file into the folder `folder` or a folder under it (an input folder
+// of images, whose every image file is read: a results file named like a frame replaced it). False when
+// `folder` is not a folder.
+bool insideFolder(const std::string& path, const std::string& folder)
+{
+  struct stat st;
+  if (stat(folder.c_str(), &st) != 0 || !S_ISDIR(st.st_mode))
+    return false;
+  const size_t slash = path.find_last_of('/');
+  const std::string parent = slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
+  char parent_real[PATH_MAX], folder_real[PATH_MAX];
+  if (!realpath(parent.c_str(), parent_real) || !realpath(folder.c_str(), folder_real))
+    return false;
+  const std::string inner(parent_real), outer(folder_real);
+  return inner == outer || (inner.size() > outer.size() && inner.compare(0, outer.size(), outer) == 0 &&
+                            (outer == "/" || inner[outer.size()] == '/'));
 }
 
 // Where the results are written before they replace `path`: a file beside it, renamed over it once
@@ -294,6 +315,13 @@ int main(int argc, char** argv)
     {
       std::cerr << "localize_offline: " << a.option << " '" << a.path << "' names the same file as " << b.option
                 << "; choose another file\n";
+      return 2;
+    }
+    const bool input = b.option == map_in.option || b.option == query_in.option;
+    if (!a.path.empty() && input && insideFolder(a.path, b.path))
+    {
+      std::cerr << "localize_offline: " << a.option << " '" << a.path << "' is inside the " << b.option
+                << " folder '" << b.path << "', whose images are the input; write it outside that folder\n";
       return 2;
     }
   }

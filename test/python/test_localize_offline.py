@@ -309,6 +309,11 @@ class LocalizeOfflineTest(unittest.TestCase):
         stub = os.path.join(self.tmp, 'stub.bag')
         with open(stub, 'wb') as f:
             f.write(content[:7])
+        header_cut = os.path.join(self.tmp, 'header_cut.bag')  # '#ROSBAG V2.0' without its newline
+        with open(header_cut, 'wb') as f:
+            f.write(content[:12])
+        self.assertFails(self.run_runner('--map', header_cut, '--query', self.map_dir, '--output', output),
+                         "'%s' is cut short inside the bag header (12 bytes)" % header_cut)
         old = os.path.join(self.tmp, 'old.bag')
         with open(old, 'wb') as f:
             f.write(b'#ROSBAG V1.2\n' + content[13:])
@@ -340,6 +345,75 @@ class LocalizeOfflineTest(unittest.TestCase):
             f.write(content[:index_pos // 2])
         self.assertFails(self.run_runner('--map', cut, '--query', self.map_dir, '--output', output),
                          'probably cut short', 'rosbag reindex %s' % cut)
+
+    def test_an_output_inside_an_input_folder_is_refused_and_the_folder_kept(self):
+        # Every image file of an input folder is read: a results file named like a frame replaced it
+        # (and any file written there is read as a frame next time). Refused, with the folder as it was.
+        inputs = os.path.join(self.tmp, 'inputs_kept')
+        shutil.copytree(self.map_dir, inputs)
+        before = {n: open(os.path.join(inputs, n), 'rb').read() for n in os.listdir(inputs)}
+        results = os.path.join(self.tmp, 'inside.csv')
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', inputs, '--output',
+                                         os.path.join(inputs, '00003.png')),
+                         "--output '%s' is inside the --query folder '%s'" % (os.path.join(inputs, '00003.png'),
+                                                                                inputs))
+        self.assertFails(self.run_runner('--map', inputs, '--query', self.map_dir, '--output', results,
+                                         '--save-map', os.path.join(inputs, 'route.map')),
+                         "is inside the --map folder '%s'" % inputs)
+        self.assertEqual({n: open(os.path.join(inputs, n), 'rb').read() for n in os.listdir(inputs)}, before)
+        self.assertFalse(os.path.exists(results))
+        # Beside the folder is fine.
+        result = self.run_runner('--map', self.map_dir, '--query', inputs, '--output', results)
+        self.assertEqual(result.returncode, 0, result.stderr)
+
+    def test_a_map_file_as_the_query_gives_the_results_of_its_images(self):
+        # A map file's keyframes are preprocessed already: as the query they are used as stored (they were
+        # preprocessed a second time), and only when made as the run's frames must be.
+        map_file, from_images = self.save_map('as_query')
+        from_file = os.path.join(self.tmp, 'as_query_file.csv')
+        result = self.run_runner('--map', self.map_dir, '--query', map_file, '--output', from_file)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        with open(from_images) as a, open(from_file) as b:
+            self.assertEqual(a.read(), b.read())
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', map_file, '--output', from_file,
+                                         '--set', 'normalization_strength=0.2'),
+                         "the map file '%s' was made with other preprocessing parameters" % map_file,
+                         'normalization_strength: 0.1 vs 0.2')
+
+    def test_a_map_file_that_lost_its_parameters_is_refused_not_read_as_images(self):
+        # A map file without its 'preprocessing' topic (a `rosbag filter`, a damaged index) was read as an
+        # image bag: its keyframes preprocessed again, the results silently different.
+        import rosbag
+        map_file, _ = self.save_map('lost_params')
+        stripped = os.path.join(self.tmp, 'lost_params_stripped.map')
+        with rosbag.Bag(map_file) as source, rosbag.Bag(stripped, 'w') as target:
+            for topic, msg, stamp in source.read_messages(raw=True):
+                if topic != 'preprocessing':
+                    target.write(topic, msg, stamp, raw=True)
+        output = os.path.join(self.tmp, 'lost_params.csv')
+        for role in ('--map', '--query'):
+            other = '--query' if role == '--map' else '--map'
+            self.assertFails(self.run_runner(role, stripped, other, self.map_dir, '--output', output),
+                             "map file '%s' holds no preprocessing parameters" % stripped)
+
+    def test_a_damaged_message_is_named_by_bag_topic_and_position(self):
+        # rosbag's own words ("Buffer Overrun") named neither the file nor the message. Message 2's data
+        # length is made impossible: messages 0 and 1 read well.
+        good = self.image('mono8', 64, 32, bytes(range(256)) * 8, 64)
+        bag = self.write_bag('damaged.bag', [good, good, good])
+        with open(bag, 'rb') as f:
+            content = bytearray(f.read())
+        pattern = b'mono8\x00' + (64).to_bytes(4, 'little') + (2048).to_bytes(4, 'little')
+        at = -1
+        for _ in range(3):
+            at = content.index(pattern, at + 1)
+        content[at + 10:at + 14] = (0x7fffffff).to_bytes(4, 'little')
+        with open(bag, 'wb') as f:
+            f.write(content)
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', bag, '--output',
+                                         os.path.join(self.tmp, 'damaged.csv')),
+                         "bag '%s' is damaged at message 2 of topic '/cam' (rosbag says: " % bag,
+                         'the 2 messages before it read well')
 
     def test_unwritable_output(self):
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output',
@@ -506,6 +580,8 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertFails(self.run_runner(*(common + ['--set', 'ring_buffer_rows=0'])), 'ring_buffer_rows')
         self.assertFails(self.run_runner(*(common + ['--set', 'no_such_parameter=1'])), 'no_such_parameter')
         self.assertFails(self.run_runner('--map', self.map_dir), 'usage')
+        self.assertFails(self.run_runner(*(common + ['--params', self.tmp])),
+                         "cannot read parameter file '%s'" % self.tmp)
 
 
 if __name__ == '__main__':
