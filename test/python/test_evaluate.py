@@ -260,6 +260,34 @@ class EvaluateEndToEndTest(unittest.TestCase):
             self.assertEqual(code, 2, value)
             self.assertIn("row 5: confidence must be a finite number", err)
 
+    def test_a_row_cut_short_or_too_long_is_refused_by_row(self):
+        # A results file cut while written ends inside a row: it was scored as if complete.
+        lines = SIX_QUERIES.strip().splitlines()
+        cut = os.path.join(self.tmp, "cut.csv")
+        write(cut, "\n".join(lines[:5]) + "\n" + ",".join(lines[5].split(",")[:3]) + "\n")
+        code, _, err = self.run_main([cut, "--identity"])
+        self.assertEqual(code, 2)
+        self.assertIn("cut.csv, row 6 has 3 values for the 6 columns of its header", err)
+        long_row = os.path.join(self.tmp, "long.csv")
+        write(long_row, SIX_QUERIES.replace("3,3,0.4,", "3,3,0.4,7,", 1))
+        code, _, err = self.run_main([long_row, "--identity"])
+        self.assertEqual(code, 2)
+        self.assertIn("has 7 values for the 6 columns of its header", err)
+
+    def test_a_binary_file_or_a_huge_keyframe_is_refused_not_a_traceback(self):
+        binary = os.path.join(self.tmp, "binary.csv")
+        with open(binary, "wb") as f:
+            f.write(b"query_index,keyframe,confidence\n0,0,0.5\n\xff\xfe\x00\x81")
+        code, _, err = self.run_main([binary, "--identity"])
+        self.assertEqual(code, 2)
+        self.assertIn("is not a text CSV file", err)
+        for value in ("inf", "1e30", "nan"):
+            bad = os.path.join(self.tmp, "huge.csv")
+            write(bad, SIX_QUERIES.replace("3,3,0.4,", "3,%s,0.4," % value))
+            code, _, err = self.run_main([bad, "--identity"])
+            self.assertEqual(code, 2, value)
+            self.assertIn("row 5: column keyframe is not", err)
+
     def test_dark_frames_that_are_not_queries_are_refused(self):
         # The six queries are 0 .. 5: frame 9 cannot be dark here (a list meant for another run).
         code, _, err = self.run_main([self.results, "--identity", "--dark-frames", "2,9"])
