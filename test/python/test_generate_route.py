@@ -209,6 +209,34 @@ class CommandLineTest(unittest.TestCase):
                     generate_route.main(args)
                 self.assertNotEqual(caught.exception.code, 0)
 
+    def test_values_that_broke_the_run_are_refused_by_name_before_anything_is_written(self):
+        # Each was a traceback (nan, 5e9 s, '' and -1 left a half-written teach.bag.tmp), or, for 1e6 m, a
+        # world of many GB built in memory. Refused by argparse (exit 2) with the option named; the
+        # output folder stays empty.
+        out = os.path.join(self.tmp, "refused")
+        base = ["--output", out, "--width", "64", "--height", "32", "--teach-frames", "20"]
+        cases = ((["--start-time", "nan"], "--start-time must be in [0, 2^32) s"),
+                 (["--start-time", "5e9"], "--start-time must be in [0, 2^32) s"),
+                 (["--topic="], "--topic: topic '' is not a ROS topic name"),
+                 (["--seed", "-1"], "--seed must be >= 0"),
+                 (["--step-m", "inf"], "--step-m must be > 0 and finite"),
+                 (["--step-m", "1e6"], "is longer than 1000 m"),
+                 (["--rate", "inf"], "--rate must be > 0 and finite"))
+        for extra, words in cases:
+            with contextlib.redirect_stderr(io.StringIO()) as err:
+                with self.assertRaises(SystemExit) as caught:
+                    generate_route.main(base + extra)
+            self.assertEqual(caught.exception.code, 2, extra)
+            self.assertIn(words, err.getvalue(), extra)
+            self.assertFalse(os.path.exists(out) and os.listdir(out), extra)
+        # The last frame's stamp counts too: a start just below 2^32 s leaves no room for the frames.
+        with contextlib.redirect_stderr(io.StringIO()) as err, contextlib.redirect_stdout(io.StringIO()):
+            with self.assertRaises(SystemExit) as caught:
+                generate_route.main(base + ["--start-time", str(2 ** 32 - 1), "--progress", "off"])
+        self.assertEqual(caught.exception.code, 2)
+        self.assertIn("do not fit ROS time", err.getvalue())
+        self.assertEqual(os.listdir(out), [])
+
 
 class ConditionLayoutTest(unittest.TestCase):
     """--conditions: which stretches, how strong, and the option's parsing."""

@@ -175,6 +175,29 @@ class BagTest(unittest.TestCase):
         self.assertEqual([m.header.stamp.secs for _, m, _ in self.read(bag_path)],
                          [2 ** 32 - 3, 2 ** 32 - 2, 2 ** 32 - 1])
 
+    def test_a_bag_inside_the_image_folder_is_refused_and_the_folder_kept(self):
+        # Every image of the folder is the input: a bag named like a frame replaced it (exit 0).
+        before = {n: open(os.path.join(self.folder, n), "rb").read() for n in os.listdir(self.folder)}
+        for target in (os.path.join(self.folder, "b.png"), os.path.join(self.folder, "out.bag")):
+            with contextlib.redirect_stderr(io.StringIO()) as err:
+                self.assertEqual(images_to_bag.main([self.folder, target]), 2)
+            self.assertIn("would be written inside the image folder", err.getvalue())
+        self.assertEqual({n: open(os.path.join(self.folder, n), "rb").read() for n in os.listdir(self.folder)},
+                         before)
+
+    def test_a_topic_that_is_not_a_ros_name_is_refused_by_name(self):
+        # rosbag refused '' with a ValueError traceback.
+        bag_path = os.path.join(self.tmp, "topic.bag")
+        for topic in ("", "two words", "/cam//image", "1cam", "/cam/"):
+            with contextlib.redirect_stderr(io.StringIO()) as err:
+                self.assertEqual(images_to_bag.main([self.folder, bag_path, "--topic", topic]), 2, topic)
+            self.assertIn("topic '%s' is not a ROS topic name" % topic, err.getvalue())
+            self.assertFalse(os.path.exists(bag_path))
+        for topic in ("cam", "/cam/image_raw", "/a1/b_2"):
+            with contextlib.redirect_stdout(io.StringIO()):
+                self.assertEqual(images_to_bag.main([self.folder, bag_path, "--topic", topic]), 0, topic)
+            self.assertEqual(set(t for t, _, _ in self.read(bag_path)), {topic})
+
     def test_images_of_different_sizes_are_refused(self):
         self.cv2.imwrite(os.path.join(self.folder, "z.png"), np.zeros((5, 6, 3), np.uint8))
         with contextlib.redirect_stderr(io.StringIO()):

@@ -267,6 +267,18 @@ class WriteTest(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("not frame-aligned", err)
 
+    def test_values_that_were_a_traceback_or_silently_nothing_are_refused(self):
+        # --seed -1 was a numpy traceback; --dark-mean nan marked no frame dark (nan compares false),
+        # while --stationary-change nan was refused.
+        for option, value, words in (("--seed", "-1", "--seed must be >= 0"),
+                                     ("--dark-mean", "nan", "--dark-mean must be a gray level in [0, 255], got nan"),
+                                     ("--dark-std", "nan", "--dark-std must be a gray level in [0, 255], got nan"),
+                                     ("--dark-mean", "-3", "--dark-mean must be a gray level")):
+            code, err = self.run_main(["--output", self.out, "--data", self.data, option, value])
+            self.assertEqual(code, 2, option + " " + value)
+            self.assertIn(words, err)
+            self.assertFalse(os.path.exists(self.out) and os.listdir(self.out), option)
+
 
 if __name__ == "__main__":
     unittest.main()
