@@ -353,6 +353,15 @@ std::shared_ptr<RouteMap> loadMapFromPath(const std::string& path, const std::st
   else
   {
     frames = preprocessBag(path, topic, *params, &stamps, progress);
+    // Every image becomes a keyframe in bag order: a bag whose stamps go back (a drive recorded twice, a
+    // loop) holds the route more than once, and each place then has a look-alike in the map.
+    size_t back = 0, first_back = 0;
+    for (size_t i = 1; i < stamps.size(); ++i)
+      if (stamps[i] < stamps[i - 1] && back++ == 0)
+        first_back = i;
+    if (back > 0)
+      std::cerr << "warning: the map bag '" << path << "': its stamps go back " << back << " time(s), first at message "
+                << first_back << ": does it hold the drive more than once? Every image is a keyframe, in bag order\n";
   }
   map->reserve(frames.size());
   for (size_t i = 0; i < frames.size(); ++i)

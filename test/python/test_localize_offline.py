@@ -213,13 +213,16 @@ class LocalizeOfflineTest(unittest.TestCase):
         other.header.stamp = rospy.Time(seconds)
         return other
 
-    def write_bag(self, name, images):
-        """A bag with the sensor_msgs/Image messages `images` on /cam, at bag times 100, 101, ..."""
+    def write_bag(self, name, images, seconds=None):
+        """A bag with the sensor_msgs/Image messages `images` on /cam, at bag times 100, 101, ... (header
+        stamps `seconds` if given: a recording of a looping `rosbag play`)."""
         import rosbag
         import rospy
         path = os.path.join(self.tmp, name)
         with rosbag.Bag(path, 'w') as bag:
             for i, msg in enumerate(images):
+                if seconds is not None:
+                    msg.header.stamp = rospy.Time(seconds[i])
                 bag.write('/cam', msg, rospy.Time(100 + i))
         return path
 
@@ -414,6 +417,24 @@ class LocalizeOfflineTest(unittest.TestCase):
                                          os.path.join(self.tmp, 'damaged.csv')),
                          "bag '%s' is damaged at message 2 of topic '/cam' (rosbag says: " % bag,
                          'the 2 messages before it read well')
+
+    def test_a_map_bag_whose_stamps_go_back_is_warned_of(self):
+        # A map bag that holds the drive twice (recorded from a looping `rosbag play`: header stamps 100-104,
+        # then 100-104 again): every image is still a keyframe, but each place now has a look-alike; it was
+        # loaded without a word.
+        frames = [self.image('mono8', 64, 32, bytes([(17 * i + 3 * j) % 256 for j in range(64 * 32)]), 64)
+                  for i in range(5)]
+        once = self.write_bag('drive_once.bag', frames, [100, 101, 102, 103, 104])
+        twice = self.write_bag('drive_twice.bag', frames + frames, [100, 101, 102, 103, 104] * 2)
+        output = os.path.join(self.tmp, 'twice.csv')
+        result = self.run_runner('--map', twice, '--query', self.map_dir, '--output', output)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertIn("warning: the map bag '%s': its stamps go back 1 time(s), first at message 5" % twice,
+                      result.stderr)
+        self.assertIn('localize_offline: 10 keyframes', result.stderr)
+        result = self.run_runner('--map', once, '--query', self.map_dir, '--output', output)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertNotIn('go back', result.stderr)
 
     def test_unwritable_output(self):
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output',
