@@ -1,5 +1,6 @@
 #include "glue/map_io.h"
 
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -681,6 +682,21 @@ void checkMapTarget(const std::string& path)
                    "`rosbag reindex " + active + "` and rename it, or move it away, before recording again");
   if (fileExists(path, &info) && S_ISDIR(info.st_mode))
     throw MapError("map file " + inQuotes(path) + " is a directory; give the path of a file to write");
+  // The folder must exist and take a new file: found only at the first keyframe, a missing or read-only
+  // folder lost the whole teach while ~start said it was recording.
+  const size_t slash = path.find_last_of('/');
+  const std::string folder = slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
+  if (!fileExists(folder, &info))
+    throw MapError("the folder " + inQuotes(folder) + " of map file " + inQuotes(path) + " does not exist; create it");
+  if (!S_ISDIR(info.st_mode))
+    throw MapError(inQuotes(folder) + ", the folder of map file " + inQuotes(path) + ", is not a folder");
+  const std::string probe = path + ".probe." + std::to_string(::getpid());
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0644);
+  if (fd < 0)
+    throw MapError("cannot write in the folder " + inQuotes(folder) + " of map file " + inQuotes(path) + ": " +
+                   std::strerror(errno));
+  ::close(fd);
+  std::remove(probe.c_str());
 }
 
 MapWriter::MapWriter(const std::string& path, const PreprocessingParams& params, const std::string& writer_info)

@@ -12,8 +12,12 @@
 //             motion message get none.
 // Publishes:  /diagnostics (state, keyframes taken and written, the writer's backlog, frames not
 //             recorded and why the last one was not)
-// Services:   ~start (refused, with the reason, when the map could not be written), ~pause, ~finish
-//             (std_srvs/Trigger; says how many frames seen while recording were not recorded, and why)
+// Services:   ~start (refused, with the reason, when the map could not be written: a `.active` left by an
+//             interrupted recording, a folder that is missing or takes no file), ~pause, ~finish
+//             (std_srvs/Trigger; says how many frames seen while recording were not recorded, and why,
+//             and how many keyframes taken could not be written)
+// Frames stamped before the last keyframe are not recorded (time went back: a looping bag would record
+// the route again after its end).
 // Parameters: ~map (absolute path of the map file), ~autostart (true), ~flush_period (1.0 s),
 //             ~motion_type (twist | odometry | none; twist),
 //             ~max_queue (1000 keyframes waiting for the writer), ~queue_size (100);
@@ -93,7 +97,8 @@ private:
     kNoParameters,  // the only one that is expected (at start-up), so a warning
     kParametersChanged,
     kWrongSize,
-    kWriterBehind
+    kWriterBehind,
+    kTimeWentBack
   };
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
   /// "; not recorded: 244 of the 600 frames seen while recording (...)", or empty when none was lost.
@@ -458,6 +463,22 @@ void MapRecorderNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     return;
   }
 
+  if (last_keyframe_ && !msg->header.stamp.isZero() && !last_keyframe_->header.stamp.isZero() &&
+      msg->header.stamp <= last_keyframe_->header.stamp)
+  {
+    // Time went back (a looping `rosbag play`, a restarted clock): the map holds that time already. Taken,
+    // a loop recorded the route again after its end, and the repeat found every place more than once.
+    char sentence[160];
+    std::snprintf(sentence, sizeof(sentence),
+                  "a frame stamped %.3f s, not after the last keyframe's %.3f s (time went back: a looping bag?)",
+                  msg->header.stamp.toSec(), last_keyframe_->header.stamp.toSec());
+    if (refused_.drop(kTimeWentBack, sentence))
+      NODELET_WARN("Not recording frames stamped before the last keyframe (%.3f s, not after %.3f s): time went "
+                   "back (a looping bag, a restarted clock?). The map keeps the drive so far; ~finish it, and "
+                   "record another map for another drive",
+                   msg->header.stamp.toSec(), last_keyframe_->header.stamp.toSec());
+    return;
+  }
   KeyframePolicy policy;
   {
     std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
@@ -650,6 +671,7 @@ bool MapRecorderNodelet::finishCb(std_srvs::Trigger::Request& /*req*/, std_srvs:
 void MapRecorderNodelet::writerLoop()
 {
   std::unique_ptr<MapWriter> writer;
+  std::string last_logged_error;
   auto next_flush = std::chrono::steady_clock::now() + std::chrono::duration<double>(flush_period_s_);
   std::unique_lock<std::mutex> lock(queue_mutex_);
   while (true)
@@ -664,13 +686,13 @@ void MapRecorderNodelet::writerLoop()
     lock.unlock();
 
     std::string error;
+    const auto now = std::chrono::steady_clock::now();
     try
     {
       if (!batch.empty() && !writer)
         writer.reset(new MapWriter(map_path_, *params, "recorder=" + getName()));
       for (const QueuedKeyframe& keyframe : batch)
         writer->add(keyframe.image, keyframe.motion);
-      const auto now = std::chrono::steady_clock::now();
       if (writer && (finish || now >= next_flush))
       {
         if (finish)
@@ -678,14 +700,18 @@ void MapRecorderNodelet::writerLoop()
         else
           writer->flush();
       }
-      if (now >= next_flush)
-        next_flush = now + std::chrono::duration<double>(flush_period_s_);
     }
     catch (const MapError& e)
     {
       error = e.what();
-      NODELET_ERROR("Map %s: %s", map_path_.c_str(), error.c_str());
+      if (error != last_logged_error)  // a failing flush fails again every flush_period: said once
+        NODELET_ERROR("Map %s: %s", map_path_.c_str(), error.c_str());
+      last_logged_error = error;
     }
+    // Also after a failed flush: retried at the next period, not at once (it failed 125 804 times in 6.6 s,
+    // the manager at full CPU, the log growing by megabytes a second).
+    if (now >= next_flush)
+      next_flush = now + std::chrono::duration<double>(flush_period_s_);
 
     lock.lock();
     if (writer)
@@ -698,7 +724,11 @@ void MapRecorderNodelet::writerLoop()
     if (finish && !finish_done_)
     {
       if (!writer_error_.empty())
-        finish_message_ = "map " + map_path_ + " failed: " + writer_error_;
+        finish_message_ = "map " + map_path_ + " failed: " + writer_error_ +
+                          (keyframes_queued_ > keyframes_written_ ?
+                               "; " + std::to_string(keyframes_queued_ - keyframes_written_) + " of the " +
+                                   std::to_string(keyframes_queued_) + " keyframes taken were not written" :
+                               std::string());
       else if (keyframes_written_ == 0)
         finish_message_ = "no keyframes were recorded; no map written to " + map_path_;
       else
