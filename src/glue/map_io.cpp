@@ -295,6 +295,17 @@ public:
     }
   }
 
+  /// The topics of the connections seen so far (sorted, each once).
+  std::vector<std::string> topics() const
+  {
+    std::vector<std::string> names;
+    for (const auto& c : connections_)
+      names.push_back(c.second.topic);
+    std::sort(names.begin(), names.end());
+    names.erase(std::unique(names.begin(), names.end()), names.end());
+    return names;
+  }
+
   RouteMap finish()
   {
     if (!params_)
@@ -541,6 +552,7 @@ RouteMap readMap(const std::string& path, std::map<int, TaughtMotion>* motion)
   file.seekg(13);  // past "#ROSBAG V2.0\n", checked above
   RecordScanner scanner(file, size);
   MapContents contents(path, size, motion);
+  std::string compressed;  // the compression of the chunks, when they are compressed
   try
   {
     Record record;
@@ -556,9 +568,12 @@ RouteMap readMap(const std::string& path, std::map<int, TaughtMotion>* motion)
         {
           const auto compression = record.fields.find("compression");
           if (compression == record.fields.end() || compression->second != "none")
-            throw MapError("map file " + inQuotes(path) + " has compressed chunks (" +
-                           (compression == record.fields.end() ? std::string("?") : compression->second) +
-                           "); map files are written uncompressed: `rosbag decompress " + path + "`");
+          {
+            // Said once the index's connections (after the chunks) tell whether this is a map at all:
+            // "decompress it" sent a user to rewrite a camera bag given as the map.
+            compressed = compression == record.fields.end() ? std::string("?") : compression->second;
+            break;
+          }
           if (fieldU32(record.fields, "size") != record.data.size())
             throw CorruptMap("a chunk's size field disagrees with its data");
           Cursor chunk(record.data.data(), record.data.size());
@@ -601,6 +616,24 @@ RouteMap readMap(const std::string& path, std::map<int, TaughtMotion>* motion)
   catch (const std::bad_alloc&)
   {
     throw MapError("map file " + inQuotes(path) + " is corrupt: a record claims an impossible size");
+  }
+  if (!compressed.empty())
+  {
+    const std::vector<std::string> topics = contents.topics();
+    const auto is_map_topic = [](const std::string& topic) {
+      return topic == kMapKeyframesTopic || topic == kMapPreprocessingTopic || topic == kMapInfoTopic;
+    };
+    if (!topics.empty() && std::none_of(topics.begin(), topics.end(), is_map_topic))
+    {
+      std::string listed;
+      for (const std::string& topic : topics)
+        listed += (listed.empty() ? "" : ", ") + topic;
+      throw MapError(inQuotes(path) + " is a bag (" + compressed + "-compressed; topics " + listed +
+                     "), not a map file: a map has the topics 'keyframes' and 'preprocessing' (written by the map "
+                     "recorder, teach.launch, or `localize_offline --save-map`)");
+    }
+    throw MapError("map file " + inQuotes(path) + " has compressed chunks (" + compressed +
+                   "); map files are written uncompressed: `rosbag decompress " + path + "`");
   }
   return contents.finish();
 }

@@ -98,6 +98,16 @@ void PreprocessorNodelet::onInit()
   ros::NodeHandle& private_nh = getPrivateNodeHandle();
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
   image_topic_ = nh.resolveName("image");
+  // A transport's own topic given as the image (image:=/camera/image_raw/compressed): subscribed to as raw,
+  // every message is dropped by roscpp for its type, and only the camera's side said so.
+  const size_t slash = image_topic_.find_last_of('/');
+  const std::string transport = image_topic_.substr(slash + 1);
+  if (slash != std::string::npos && slash > 0 &&
+      (transport == "compressed" || transport == "compressedDepth" || transport == "theora"))
+    NODELET_ERROR("The image topic %s is the '%s' transport of %s, which this nodelet cannot read as an image: "
+                  "give the base topic (image:=%s) and set ~image_transport to %s",
+                  image_topic_.c_str(), transport.c_str(), image_topic_.substr(0, slash).c_str(),
+                  image_topic_.substr(0, slash).c_str(), transport.c_str());
   const std::set<std::string> own = { "queue_size", "image_transport" };
   std::set<std::string> read = configParameterNames<PreprocessorConfig>();
   read.insert(own.begin(), own.end());

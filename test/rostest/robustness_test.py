@@ -312,6 +312,22 @@ class RobustnessTest(unittest.TestCase):
             rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
             shutil.rmtree(folder, ignore_errors=True)
 
+    def test_a_transports_topic_given_as_the_image_is_named(self):
+        # image:=/camera/image_raw/compressed: every message was dropped for its type, and the preprocessor
+        # said nothing (its diagnostics waited for images).
+        name = '/repeat/compressed_preprocessor'
+        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
+            name, 'along_route_localization/preprocessor', ['/repeat/image', '/repeat/image_preprocessed'],
+            ['/some_camera/image_raw/compressed', '/compressed_test/image_preprocessed'], [], '')
+        self.assertTrue(loaded.success)
+        try:
+            text = ("The image topic /some_camera/image_raw/compressed is the 'compressed' transport of "
+                    "/some_camera/image_raw, which this nodelet cannot read as an image: give the base topic "
+                    "(image:=/some_camera/image_raw) and set ~image_transport to compressed")
+            fx.wait_for(lambda: self.rosout.matching(text, Log.ERROR), 10, 'the preprocessor to name the transport')
+        finally:
+            rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
+
     def test_a_refusal_that_ends_mid_drive_does_not_restart_at_the_route_start(self):
         # Issue 33: after the preprocessing was changed and set back mid-drive, the localizer started
         # over at keyframe 0 (start_keyframe) and said tracking there for about 10 frames. The robot is

@@ -448,6 +448,26 @@ TEST_F(MapIoTest, BagsThatAreNotMapsAreNamedForWhatTheyLack)
     bag.write(kMapKeyframesTopic, ros::Time(1), keyframeMessage(randomKeyframe(rng), 1));
   }
   EXPECT_NE(readError(path("future.bag")).find("map format 2"), std::string::npos);
+  // A compressed camera bag given as the map was told to `rosbag decompress` itself, and then that it held
+  // no parameters: it is said to be no map at once, naming its topics. A compressed map is still told to
+  // be decompressed.
+  {
+    rosbag::Bag bag(path("camera.bag"), rosbag::bagmode::Write);
+    bag.setCompression(rosbag::compression::LZ4);
+    bag.write("/camera/image_raw", ros::Time(1), keyframeMessage(randomKeyframe(rng), 1));
+  }
+  EXPECT_EQ(readError(path("camera.bag")),
+            "'" + path("camera.bag") + "' is a bag (lz4-compressed; topics /camera/image_raw), not a map file: a map "
+            "has the topics 'keyframes' and 'preprocessing' (written by the map recorder, teach.launch, or "
+            "`localize_offline --save-map`)");
+  {
+    rosbag::Bag bag(path("compressed_map.bag"), rosbag::bagmode::Write);
+    bag.setCompression(rosbag::compression::BZ2);
+    bag.write(kMapPreprocessingTopic, ros::TIME_MIN, text(params.serialize()));
+    bag.write(kMapKeyframesTopic, ros::Time(1), keyframeMessage(randomKeyframe(rng), 1));
+  }
+  EXPECT_NE(readError(path("compressed_map.bag")).find("has compressed chunks (bz2)"), std::string::npos);
+  EXPECT_NE(readError(path("compressed_map.bag")).find("rosbag decompress"), std::string::npos);
 }
 
 TEST_F(MapIoTest, WriterRefusesKeyframesThatDoNotMatchItsParameters)
