@@ -606,7 +606,10 @@ bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::
   else
   {
     res.success = true;
-    res.message = std::string(state_ == State::kPaused ? "resumed" : "started") + " recording " + map_path_;
+    res.message = std::string(state_ == State::kPaused    ? "resumed recording " :
+                              state_ == State::kRecording ? "already recording " :
+                                                            "started recording ") +
+                  map_path_;
     state_ = State::kRecording;
   }
   if (res.success)

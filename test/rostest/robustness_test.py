@@ -221,6 +221,9 @@ class RobustnessTest(unittest.TestCase):
             os.makedirs(folder)
             started = rospy.ServiceProxy(name + '/start', Trigger)()
             self.assertTrue(started.success, started.message)
+            self.assertEqual(started.message, 'started recording ' + path)
+            again = rospy.ServiceProxy(name + '/start', Trigger)()  # it said "started" again
+            self.assertEqual((again.success, again.message), (True, 'already recording ' + path))
         finally:
             rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
             shutil.rmtree(folder, ignore_errors=True)
