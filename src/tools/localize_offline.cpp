@@ -367,6 +367,21 @@ int main(int argc, char** argv)
     return 1;
   }
   const double load_seconds = secondsSince(start);
+  // The localizer (its per-map tables) before anything is written: parameters the map cannot take
+  // (start_keyframe beyond it, max_shift_px over half its width) are refused with no map file saved.
+  const auto localize_start = Clock::now();
+  std::unique_ptr<alr::Localizer> localizer;
+  try
+  {
+    localizer.reset(new alr::Localizer(map, localizer_params));  // the per-map tables (map statistics)
+    localizer->measureMapStatisticsNow();                         // and the ones a check would measure on need
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "localize_offline: " << e.what() << "\n";
+    return 1;
+  }
+  const double tables_seconds = secondsSince(localize_start);
   if (!save_map_path.empty())
   {
     try
@@ -397,21 +412,17 @@ int main(int argc, char** argv)
     return 1;
   };
   out << "query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n";
-  const auto localize_start = Clock::now();
+  const auto frames_start = Clock::now();
   alr::FrameGapCounts gaps;
   int64_t restarts = 0;
-  double tables_seconds = 0.0;
   try
   {
-    alr::Localizer localizer(map, localizer_params);  // the per-map tables (map statistics) are built here
-    localizer.measureMapStatisticsNow();               // and the ones a check would measure on first need
-    tables_seconds = secondsSince(localize_start);
     Progress progress("localizing", progress_mode);
     char line[160];
     for (size_t q = 0; q < queries.size(); ++q)
     {
       // As the localizer nodelet: a bag's stamps tell when time went back and when frames were missed.
-      const alr::LocalizationResult r = localizer.process(queries[q], query_stamps[q]);
+      const alr::LocalizationResult r = localizer->process(queries[q], query_stamps[q]);
       restarts += r.time_went_back ? 1 : 0;
       gaps.add(r);
       std::snprintf(line, sizeof(line), "%zu,%d,%.6f,%.4f,%.6f,%s\n", q, r.keyframe, r.confidence, r.shift_px,
@@ -424,7 +435,7 @@ int main(int argc, char** argv)
   {
     return fail(e.what());
   }
-  const double localize_seconds = secondsSince(localize_start);
+  const double localize_seconds = tables_seconds + secondsSince(frames_start);
   out.close();
   if (!out)  // e.g. a full disk: the rows did not all reach the file
     return fail("writing '" + staging + "' failed: " + std::strerror(errno) + "; '" + output_path + "' is left as it was");

@@ -119,6 +119,13 @@ class LocalizeOfflineTest(unittest.TestCase):
             self.assertEqual(a.read(), b.read())
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', from_file,
                                          '--save-map', '/no/such/dir/saved.map'), '--save-map', '/no/such/dir')
+        # Parameters the map cannot take are refused before the map file is written (it was written, and
+        # then the run failed).
+        refused_map = os.path.join(self.tmp, 'refused.map')
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', from_file,
+                                         '--save-map', refused_map, '--set', 'start_keyframe=40'),
+                         'start_keyframe must be below the map')
+        self.assertFalse(os.path.exists(refused_map))
 
     def save_map(self, name, *options):
         """Runs the map folder against itself with --save-map; returns (map file, results csv)."""
