@@ -47,6 +47,45 @@ class SeedListTest(unittest.TestCase):
         with contextlib.redirect_stderr(io.StringIO()) as err, self.assertRaises(SystemExit):
             evaluation.parse_args(["--extra-seeds", "2-x"])
         self.assertIn("--extra-seeds", err.getvalue())
+        # A fold count cross_validate cannot use was found only after the whole evaluation.
+        for folds in ("1", "-2"):
+            with contextlib.redirect_stderr(io.StringIO()) as err, self.assertRaises(SystemExit):
+                evaluation.parse_args(["--folds", folds])
+            self.assertIn("--folds must be 0 (off) or at least 2", err.getvalue())
+        self.assertEqual(evaluation.parse_args(["--folds", "0"]).folds, 0)
+
+
+class ParameterSensitivityCommandTest(unittest.TestCase):
+    """scripts/parameter_sensitivity runs run_evaluation once per setting: the command it builds must be
+    one run_evaluation takes (with --set and no --folds 0 it refused every setting but the defaults)."""
+
+    def test_each_setting_makes_a_command_run_evaluation_takes(self):
+        import types
+        sensitivity = load("parameter_sensitivity")
+        commands = []
+
+        def fake_run(command, **kwargs):
+            commands.append(command)
+            return types.SimpleNamespace(returncode=0, stdout="", stderr="")
+        tmp = tempfile.mkdtemp(prefix="test_sensitivity_")
+        try:
+            os.makedirs(os.path.join(tmp, "runs"))
+            with open(os.path.join(tmp, "runs", "aligned.dtw.json"), "w") as f:
+                json.dump(fake_metrics(0.9), f)
+            args = types.SimpleNamespace(data=None, localize_offline=None)
+            real_run = sensitivity.subprocess.run
+            sensitivity.subprocess.run = fake_run
+            try:
+                for setting in ("", "max_step=3", "max_step=3,ring_buffer_rows=20"):
+                    sensitivity.evaluate(setting, 1, ["aligned"], args, tmp)
+            finally:
+                sensitivity.subprocess.run = real_run
+        finally:
+            shutil.rmtree(tmp)
+        self.assertEqual(len(commands), 3)
+        for command in commands:
+            self.assertTrue(command[1].endswith("run_evaluation"), command)
+            evaluation.parse_args(command[2:])  # exits (SystemExit) on a command it refuses
 
 
 class SpreadTest(unittest.TestCase):
