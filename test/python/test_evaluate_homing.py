@@ -118,6 +118,23 @@ class SyntheticPairsTest(unittest.TestCase):
         self.assertIn("generate_route --images", str(caught.exception))
 
 
+class OutputTest(unittest.TestCase):
+    def test_the_estimates_are_not_written_over_the_pairs_they_read(self):
+        # --csv equal to --pairs rewrote the pairs with the estimates; the next run scored against those.
+        with tempfile.TemporaryDirectory() as tmp:
+            pairs = os.path.join(tmp, "pairs.csv")
+            text = "place,map_image,query_image,true_shift_px\n1,images/a.png,images/b.png,4.0\n"
+            with open(pairs, "w") as f:
+                f.write(text)
+            err = io.StringIO()
+            with contextlib.redirect_stderr(err):
+                code = evaluate_homing.main(["--pairs", pairs, "--csv", pairs, "--tool", "/bin/true"])
+            self.assertEqual(code, 1)
+            self.assertIn("--csv %s is the pairs file it reads" % pairs, err.getvalue())
+            with open(pairs) as f:
+                self.assertEqual(f.read(), text)
+
+
 class RealPairsTest(unittest.TestCase):
     def test_default_run_on_stromovka(self):
         tool = built_executable("homing_pairs")

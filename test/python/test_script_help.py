@@ -48,3 +48,15 @@ class ScriptHelpTest(unittest.TestCase):
 
 if __name__ == '__main__':
     unittest.main()
+
+
+class MeasureNodeletCpuRateTest(unittest.TestCase):
+    def test_a_rate_that_is_not_a_number_is_refused_not_run(self):
+        # RATE_HZ went into Python source: 'abc' was a NameError traceback, and an expression was run.
+        with tempfile.TemporaryDirectory() as tmp:
+            marker = os.path.join(tmp, 'ran')
+            for rate in ('abc', 'nan', '0', '-5', '__import__("os").mkdir("%s")' % marker):
+                result = run('measure_nodelet_cpu', tmp, rate, cwd=tmp)
+                self.assertEqual(result.returncode, 2, rate)
+                self.assertIn("RATE_HZ must be a number in (0, 10000], not '%s'" % rate, result.stderr)
+            self.assertFalse(os.path.exists(marker))
