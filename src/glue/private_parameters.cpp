@@ -3,6 +3,7 @@
 #include "along_route_localization/parameters.h"
 
 #include <algorithm>
+#include <cctype>
 #include <sstream>
 
 namespace along_route_localization
@@ -93,6 +94,40 @@ MotionType readMotionType(const ros::NodeHandle& private_nh, MotionType fallback
     if (text == motionTypeName(type))
       return type;
   *problem = "~motion_type '" + text + "' is not one of none | twist | odometry" + using_fallback;
+  return fallback;
+}
+
+bool readBoolParameter(const ros::NodeHandle& private_nh, const std::string& name, bool fallback, std::string* problem)
+{
+  problem->clear();
+  XmlRpc::XmlRpcValue value;
+  if (!private_nh.getParam(name, value))
+    return fallback;
+  switch (value.getType())
+  {
+    case XmlRpc::XmlRpcValue::TypeBoolean:
+      return static_cast<bool>(value);
+    case XmlRpc::XmlRpcValue::TypeInt:  // roslaunch types `value="0"` as an integer
+      if (static_cast<int>(value) == 0 || static_cast<int>(value) == 1)
+        return static_cast<int>(value) == 1;
+      break;
+    case XmlRpc::XmlRpcValue::TypeString:
+    {
+      std::string text = static_cast<std::string>(value);
+      std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
+      if (text == "true" || text == "1" || text == "yes" || text == "on")
+        return true;
+      if (text == "false" || text == "0" || text == "no" || text == "off")
+        return false;
+      break;
+    }
+    default:
+      break;
+  }
+  *problem = "~" + name + " = " + (value.getType() == XmlRpc::XmlRpcValue::TypeString ?
+                                       "'" + static_cast<std::string>(value) + "'" :
+                                       value.toXml()) +
+             " is not true or false; using " + (fallback ? "true" : "false");
   return fallback;
 }
 

@@ -98,6 +98,13 @@ std::string motionTypeName(MotionType type);
 /// ("~motion_type 'cmd_vel' is not one of none | twist | odometry; using twist"); else *problem is empty.
 MotionType readMotionType(const ros::NodeHandle& private_nh, MotionType fallback, std::string* problem);
 
+/// A static bool parameter as set under private_nh; `fallback` when unset. Takes a bool, the integers 0
+/// and 1 (roslaunch types `value="0"` as an integer, which ros::NodeHandle::param<bool> ignores without a
+/// word: `teach.launch autostart:=0` recorded from the first frame) and the strings true / false / 1 / 0 /
+/// yes / no / on / off; anything else gives `fallback` and *problem the sentence for the log ("~autostart =
+/// 'maybe' is not true or false; using true"); else *problem is empty.
+bool readBoolParameter(const ros::NodeHandle& private_nh, const std::string& name, bool fallback, std::string* problem);
+
 }  // namespace along_route_localization
 
 #endif  // ALONG_ROUTE_LOCALIZATION_GLUE_PRIVATE_PARAMETERS_H

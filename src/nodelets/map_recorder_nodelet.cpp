@@ -179,8 +179,10 @@ void MapRecorderNodelet::onInit()
   for (const std::string& name : unreadParameters(private_nh, read))
     NODELET_WARN("%s", unreadSentence(name, "map recorder", read).c_str());
   private_nh.param("map", map_path_, std::string());
-  bool autostart = true;
-  private_nh.param("autostart", autostart, autostart);
+  std::string autostart_problem;
+  const bool autostart = readBoolParameter(private_nh, "autostart", true, &autostart_problem);
+  if (!autostart_problem.empty())
+    NODELET_ERROR("%s", autostart_problem.c_str());
   private_nh.param("flush_period", flush_period_s_, flush_period_s_);
   if (!(flush_period_s_ > 0.0 && flush_period_s_ <= 3600.0))
   {

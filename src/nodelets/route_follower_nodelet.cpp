@@ -92,8 +92,10 @@ void RouteFollowerNodelet::onInit()
   for (const std::string& name : unreadParameters(private_nh, read))
     NODELET_WARN("%s", unreadSentence(name, "route follower", read).c_str());
   private_nh.param("map", map_path_, std::string());
-  bool autostart = false;
-  private_nh.param("autostart", autostart, autostart);
+  std::string autostart_problem;
+  const bool autostart = readBoolParameter(private_nh, "autostart", false, &autostart_problem);
+  if (!autostart_problem.empty())
+    NODELET_ERROR("%s", autostart_problem.c_str());
   private_nh.param("control_rate", control_rate_hz_, control_rate_hz_);
   if (!(control_rate_hz_ >= 1.0 && control_rate_hz_ <= 1000.0))
   {

@@ -331,6 +331,29 @@ class RobustnessTest(unittest.TestCase):
         finally:
             rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
 
+    def test_a_recorders_autostart_given_as_0_or_maybe_is_read_or_named(self):
+        # teach.launch autostart:=0 reached the recorder as the integer 0, which it ignored without a word:
+        # it recorded from the first frame. 0 is false now; a value that is no bool is named.
+        for given, state, words in ((0, 'idle: call ~start to record', None),
+                                    ('maybe', 'recording, waiting for images on /autostart_test/image_preprocessed',
+                                     "~autostart = 'maybe' is not true or false; using true")):
+            name = '/repeat/autostart_recorder'
+            rospy.set_param(name + '/map', os.path.join(self.tmp, 'autostart_map.bag'))
+            rospy.set_param(name + '/autostart', given)
+            loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
+                name, 'along_route_localization/map_recorder', ['/repeat/image_preprocessed'],
+                ['/autostart_test/image_preprocessed'], [], '')
+            self.assertTrue(loaded.success)
+            try:
+                status = self.diagnostics.next_status('repeat/autostart_recorder: recording', lambda s: True,
+                                                      'the recorder to report (autostart %r)' % given)
+                self.assertEqual(status.message, state)
+                if words:
+                    fx.wait_for(lambda: self.rosout.matching(words, Log.ERROR), 10, 'a message %r' % words)
+            finally:
+                rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
+                rospy.delete_param(name)
+
     def test_a_refusal_that_ends_mid_drive_does_not_restart_at_the_route_start(self):
         # Issue 33: after the preprocessing was changed and set back mid-drive, the localizer started
         # over at keyframe 0 (start_keyframe) and said tracking there for about 10 frames. The robot is
