@@ -144,5 +144,55 @@ class SelectionTest(unittest.TestCase):
                                     "%s, %s: %s is out of range" % (file_name, name, assignment))
 
 
+class BadInputTest(unittest.TestCase):
+    """Errors that were tracebacks, or came after folders were made inside the data."""
+
+    def run_main(self, *args):
+        import contextlib
+        import io
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            code = cross_validate.main(list(args))
+        return code, err.getvalue()
+
+    def test_an_output_inside_the_data_folder_is_refused_before_anything_is_made_there(self):
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="test_cross_validate_data_")
+        try:
+            for season in ("summer", "winter"):
+                os.makedirs(os.path.join(tmp, season))
+            code, err = self.run_main("--data", tmp, "--output", os.path.join(tmp, "cv"), "--folds", "2",
+                                      "--fold-size", "30", "--localize-offline", "/bin/true")
+            self.assertEqual(code, 1)
+            self.assertIn("is inside the data folder", err)
+            self.assertEqual(sorted(os.listdir(tmp)), ["summer", "winter"])
+        finally:
+            shutil.rmtree(tmp)
+
+    def test_a_runner_that_writes_no_results_is_an_error_not_a_traceback(self):
+        # --localize-offline /bin/true exits 0 and writes nothing: evaluate's InputError was a traceback.
+        import shutil
+        import tempfile
+        nordland = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..",
+                                                 "shared", "data", "nordland"))
+        if not os.path.isdir(os.path.join(nordland, "summer")):
+            self.skipTest("needs the Nordland frames in %s" % nordland)
+        tmp = tempfile.mkdtemp(prefix="test_cross_validate_runner_")
+        try:
+            data = os.path.join(tmp, "data")
+            for season in ("summer", "winter"):
+                os.makedirs(os.path.join(data, season))
+                for name in sorted(os.listdir(os.path.join(nordland, season)))[:60]:
+                    os.symlink(os.path.join(nordland, season, name), os.path.join(data, season, name))
+            code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv"), "--folds", "2",
+                                      "--fold-size", "30", "--seeds", "1", "--localize-offline", "/bin/true")
+            self.assertEqual(code, 1)
+            self.assertTrue(err.startswith("cross_validate: error: "), err)
+            self.assertNotIn("Traceback", err)
+        finally:
+            shutil.rmtree(tmp)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -226,6 +226,14 @@ class SetReachesTheRunnerTest(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("unknown parameter 'no_such_parameter'", err)
 
+    def test_a_seed_range_past_the_bound_is_refused(self):
+        # 1-100000000 built the list and ran out of memory (a traceback).
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:
+            run_hard_conditions.main(['--work', self.work, '--reuse', '--seeds', '1-100000000'])
+        self.assertEqual(raised.exception.code, 2)
+        self.assertIn("(at most 1000 seeds)", err.getvalue())
+
     def test_a_set_without_a_value_is_refused(self):
         err = io.StringIO()
         with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:

@@ -55,6 +55,35 @@ class SeedListTest(unittest.TestCase):
         self.assertEqual(evaluation.parse_args(["--folds", "0"]).folds, 0)
 
 
+class BadInputTest(unittest.TestCase):
+    def test_a_seed_range_past_the_bound_is_refused_before_it_is_built(self):
+        # 1-100000000 built a hundred million seeds and ran out of memory (a traceback).
+        self.assertEqual(len(evaluation.parse_seeds("1-1000")), 1000)
+        with self.assertRaises(ValueError) as caught:
+            evaluation.parse_seeds("1-100000000")
+        self.assertIn("more than 1000 seeds", str(caught.exception))
+        with self.assertRaises(ValueError):
+            evaluation.parse_seeds("1-600,2000-2600")
+
+    def test_an_output_inside_the_data_folder_is_refused_before_anything_is_made_there(self):
+        # make_nordland_scenarios refused it, but only after this run had made OUTPUT/{scenarios,runs,plots}
+        # inside the data folder.
+        tmp = tempfile.mkdtemp(prefix="test_run_evaluation_data_")
+        try:
+            for season in ("summer", "winter"):
+                os.makedirs(os.path.join(tmp, season))
+            before = sorted(os.listdir(tmp))
+            err = io.StringIO()
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                code = evaluation.main(["--data", tmp, "--output", os.path.join(tmp, "out"), "--folds", "0",
+                                        "--extra-seeds", "none", "--localize-offline", "/bin/true"])
+            self.assertNotEqual(code, 0)
+            self.assertIn("is inside the data folder", err.getvalue())
+            self.assertEqual(sorted(os.listdir(tmp)), before)
+        finally:
+            shutil.rmtree(tmp)
+
+
 class ParameterSensitivityCommandTest(unittest.TestCase):
     """scripts/parameter_sensitivity runs run_evaluation once per setting: the command it builds must be
     one run_evaluation takes (with --set and no --folds 0 it refused every setting but the defaults)."""
