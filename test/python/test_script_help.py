@@ -60,3 +60,44 @@ class MeasureNodeletCpuRateTest(unittest.TestCase):
                 self.assertEqual(result.returncode, 2, rate)
                 self.assertIn("RATE_HZ must be a number in (0, 10000], not '%s'" % rate, result.stderr)
             self.assertFalse(os.path.exists(marker))
+
+
+class RunBenchmarksExitTest(unittest.TestCase):
+    """A failing benchmark printed its table and exited 0; --repetitions -4 ran once; --from-json of a missing
+    or foreign file was a traceback."""
+
+    def fake_benchmark(self, tmp, exit_code):
+        path = os.path.join(tmp, 'fakebench.sh')
+        with open(path, 'w') as f:
+            f.write('#!/bin/bash\nfor a in "$@"; do case "$a" in --benchmark_out=*) out="${a#*=}";; esac; done\n'
+                    'echo \'{"context": {}, "benchmarks": []}\' > "$out"\nexit %d\n' % exit_code)
+        os.chmod(path, 0o755)
+        return path
+
+    def test_a_failing_benchmark_exits_non_zero_after_its_table(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            common = ['--filter', 'BM_None', '--nordland', os.path.join(tmp, 'none'), '--repetitions', '1']
+            failing = run('run_benchmarks', '--benchmark', self.fake_benchmark(tmp, 3), *common, cwd=tmp)
+            self.assertEqual(failing.returncode, 1, failing.stderr)
+            self.assertIn('Times per iteration', failing.stdout)
+            self.assertIn('run_benchmarks: the benchmark exited with 3', failing.stderr)
+            passing = run('run_benchmarks', '--benchmark', self.fake_benchmark(tmp, 0), *common, cwd=tmp)
+            self.assertEqual(passing.returncode, 0, passing.stderr)
+
+    def test_bad_options_are_refused_by_name(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            result = run('run_benchmarks', '--repetitions', '-4', cwd=tmp)
+            self.assertEqual(result.returncode, 2)
+            self.assertIn('--repetitions must be at least 1, got -4', result.stderr)
+            result = run('run_benchmarks', '--json-out', os.path.join(tmp, 'nodir', 'b.json'), cwd=tmp)
+            self.assertEqual(result.returncode, 2)
+            self.assertIn('its folder does not exist', result.stderr)
+            listed = os.path.join(tmp, 'list.json')
+            with open(listed, 'w') as f:
+                f.write('[]')
+            for path, words in ((os.path.join(tmp, 'missing.json'), 'No such file'),
+                                (listed, 'is not a Google Benchmark JSON output')):
+                result = run('run_benchmarks', '--from-json', path, cwd=tmp)
+                self.assertEqual(result.returncode, 2, result.stderr)
+                self.assertIn(words, result.stderr)
+                self.assertNotIn('Traceback', result.stderr)
