@@ -171,6 +171,26 @@ class FiguresTest(unittest.TestCase):
         self.assertEqual(closed_loop.parse_args(["--offsets=-1:-10,1:-10"]).offsets, [(-1.0, -10.0), (1.0, -10.0)])
         with self.assertRaises(Exception):
             closed_loop.parse_offset("1")
+        # nan passed every check: roscore and teach.launch started, and the run failed 7 s later with "no
+        # map was written", the reason only in a log.
+        for bad in ("nan:nan", "nan:10", "1:inf", "5:10", "1:120"):
+            with self.assertRaises(argparse.ArgumentTypeError, msg=bad):
+                closed_loop.parse_offset(bad)
+
+    def test_bad_arguments_are_refused_before_anything_starts(self):
+        import contextlib
+        import io
+        import tempfile
+        with tempfile.NamedTemporaryFile() as afile:
+            for args, words in ((["--route-length-m", "nan"], "--route-length-m must be in [20, 1000], not nan"),
+                                (["--route-length-m", "5000"], "--route-length-m must be in [20, 1000]"),
+                                (["--seeds", "-3"], "--seeds must be >= 0"),
+                                (["--output", afile.name], "is a file, not a folder")):
+                err = io.StringIO()
+                with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:
+                    closed_loop.parse_args(args)
+                self.assertEqual(raised.exception.code, 2, args)
+                self.assertIn(words, err.getvalue())
 
     def test_occlusion(self):
         self.assertEqual(closed_loop.parse_occlusion("40:10"), (40.0, 10.0))
