@@ -177,6 +177,16 @@ class FiguresTest(unittest.TestCase):
             with self.assertRaises(argparse.ArgumentTypeError, msg=bad):
                 closed_loop.parse_offset(bad)
 
+    def test_a_params_file_that_is_not_yaml_is_named(self):
+        import tempfile
+        with tempfile.TemporaryDirectory() as tmp:
+            bad = os.path.join(tmp, "bad.yaml")
+            with open(bad, "w") as f:
+                f.write("localizer: [unclosed\n")
+            with self.assertRaises(ValueError) as caught:  # a yaml traceback before
+                closed_loop.write_params(os.path.join(tmp, "params.yaml"), bad)
+            self.assertIn("bad.yaml is not YAML", str(caught.exception))
+
     def test_bad_arguments_are_refused_before_anything_starts(self):
         import contextlib
         import io

@@ -134,6 +134,19 @@ class OutputTest(unittest.TestCase):
             with open(pairs) as f:
                 self.assertEqual(f.read(), text)
 
+    def test_bad_options_are_refused_by_name_before_the_run(self):
+        # --true-width 0 was refused by homing_pairs with its usage, naming nothing; --csv in a missing
+        # folder was a traceback after the run.
+        with tempfile.TemporaryDirectory() as tmp:
+            for argv, words in ((["--true-width", "0"], "--true-width must be a positive width in px, got 0.0"),
+                                (["--true-width", "nan"], "--true-width must be a positive width in px, got nan"),
+                                (["--csv", os.path.join(tmp, "nodir", "x.csv")], "its folder does not exist")):
+                err = io.StringIO()
+                with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:
+                    evaluate_homing.main(argv + ["--tool", "/bin/true"])
+                self.assertEqual(raised.exception.code, 2, argv)
+                self.assertIn(words, err.getvalue())
+
 
 class RealPairsTest(unittest.TestCase):
     def test_default_run_on_stromovka(self):

@@ -15,6 +15,7 @@ collapse: the query washed out while the map is not), so:
     not send the answer far away: measured on other seeds, doc/results.md).
 """
 
+import argparse
 import contextlib
 import csv
 import io
@@ -193,8 +194,8 @@ class SetReachesTheRunnerTest(unittest.TestCase):
         """run_hard_conditions.main on the route, with `--set` for each of sets: (exit code, stdout, stderr,
         the JSON entry of the run, the first answer's keyframe)."""
         json_path = os.path.join(self.work, 'figures.json')
-        argv = ['--work', self.work, '--seeds', '1', '--sets', 'none', '--reuse', '--localize-offline', RUNNER,
-                '--output-json', json_path]
+        argv = ['--work', self.work, '--seeds', '1', '--sets', 'none', '--reuse', '--teach-frames', '40',
+                '--localize-offline', RUNNER, '--output-json', json_path]
         for assignment in sets:
             argv += ['--set', assignment]
         out, err = io.StringIO(), io.StringIO()
@@ -233,6 +234,34 @@ class SetReachesTheRunnerTest(unittest.TestCase):
             run_hard_conditions.main(['--work', self.work, '--reuse', '--seeds', '1-100000000'])
         self.assertEqual(raised.exception.code, 2)
         self.assertIn("(at most 1000 seeds)", err.getvalue())
+
+    def test_reuse_takes_only_a_route_of_the_teach_frames_asked_for(self):
+        # --reuse --teach-frames 300 scored this 40-frame route without a word. It is rendered anew then;
+        # here the runner is run up to that point only (a route of 300 frames takes a minute).
+        calls = []
+
+        def fake_run(command, **kwargs):
+            calls.append(command)
+            raise RuntimeError('stop here')
+        real_run = run_hard_conditions.subprocess.run
+        run_hard_conditions.subprocess.run = fake_run
+        try:
+            for frames in (40, 300):
+                calls.clear()
+                args = argparse.Namespace(reuse=True, teach_frames=frames, set=[], after_frames=20)
+                with self.assertRaises(RuntimeError):
+                    run_hard_conditions.run_one(1, 'none', self.work, args, RUNNER)
+                self.assertEqual(os.path.basename(calls[0][1]) == 'generate_route', frames == 300, frames)
+        finally:
+            run_hard_conditions.subprocess.run = real_run
+
+    def test_an_output_json_in_a_missing_folder_is_refused_before_the_runs(self):
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:
+            run_hard_conditions.main(['--work', self.work, '--reuse', '--output-json',
+                                      os.path.join(self.work, 'nodir', 'x.json')])
+        self.assertEqual(raised.exception.code, 2)
+        self.assertIn('its folder does not exist', err.getvalue())
 
     def test_a_set_without_a_value_is_refused(self):
         err = io.StringIO()
