@@ -54,6 +54,7 @@ class RobustnessTest(unittest.TestCase):
         fx.wait_for(lambda: cls.camera.get_num_connections() > 0 and cls.direct.get_num_connections() > 0, 30,
                     'the nodelets to subscribe')
         cls.next_stamp = 5000.0
+        cls.announcers = []  # load_recorder's latched preprocessing parameters
 
     @classmethod
     def tearDownClass(cls):
@@ -142,11 +143,8 @@ class RobustnessTest(unittest.TestCase):
         # of the wrong size is not recorded and its diagnostics say why, until a good one is.
         name = '/repeat/second_recorder'
         path = os.path.join(self.tmp, 'second_map.bag')
-        rospy.set_param(name + '/map', path)
-        rospy.set_param(name + '/motion_type', 'cmd_vel')  # a topic's name for its type: said, twist used
-        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
-            name, 'along_route_localization/map_recorder', [], [], [], '')
-        self.assertTrue(loaded.success)
+        # ~motion_type: a topic's name for its type: said, twist used
+        self.load_recorder(name, {'map': path, 'motion_type': 'cmd_vel'})
         status, suffix = self.diagnostics.next_status, 'repeat/second_recorder: recording'
         try:
             text = "~motion_type 'cmd_vel' is not one of none | twist | odometry; using twist"
@@ -183,11 +181,7 @@ class RobustnessTest(unittest.TestCase):
         name = '/repeat/leftover_recorder'
         path = os.path.join(self.tmp, 'leftover_map.bag')
         fx.write_bag(path + '.active', 'keyframes', [self.good(0)])
-        rospy.set_param(name + '/map', path)
-        rospy.set_param(name + '/autostart', False)
-        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
-            name, 'along_route_localization/map_recorder', [], [], [], '')
-        self.assertTrue(loaded.success)
+        self.load_recorder(name, {'map': path, 'autostart': False})
         try:
             fx.wait_for_service(name + '/start')
             refused = rospy.ServiceProxy(name + '/start', Trigger)()
@@ -207,11 +201,7 @@ class RobustnessTest(unittest.TestCase):
         name = '/repeat/nofolder_recorder'
         folder = os.path.join(self.tmp, 'not_yet')
         path = os.path.join(folder, 'map.bag')
-        rospy.set_param(name + '/map', path)
-        rospy.set_param(name + '/autostart', False)
-        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
-            name, 'along_route_localization/map_recorder', [], [], [], '')
-        self.assertTrue(loaded.success)
+        self.load_recorder(name, {'map': path, 'autostart': False})
         try:
             fx.wait_for_service(name + '/start')
             refused = rospy.ServiceProxy(name + '/start', Trigger)()
@@ -234,25 +224,12 @@ class RobustnessTest(unittest.TestCase):
         # last keyframe are not recorded, and ~finish says how many and why. (Its own topic: the
         # localizer would take the stamps going back for a looping bag of its own.)
         name = '/repeat/loop_recorder'
-        topic = '/loop_test/image_preprocessed'
         path = os.path.join(self.tmp, 'loop_map.bag')
-        announced = rospy.wait_for_message('/repeat/preprocessing_params', String, timeout=10)
-        params = rospy.Publisher('/loop_test/preprocessing_params', String, queue_size=1, latch=True)
-        params.publish(announced)
-        frames = rospy.Publisher(topic, Image, queue_size=100)
-        rospy.set_param(name + '/map', path)
-        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
-            name, 'along_route_localization/map_recorder', ['/repeat/image_preprocessed'], [topic], [], '')
-        self.assertTrue(loaded.success)
         try:
-            fx.wait_for(lambda: frames.get_num_connections() > 0, 10, 'the recorder to subscribe')
-            rng = np.random.RandomState(4)
+            publish = self.load_recorder(name, {'map': path}, '/loop_test/image_preprocessed', seed=4)
             stamps = (100.0, 100.1, 100.2, 100.0, 100.1)  # the drive, then the same drive again
             for stamp in stamps:
-                msg = image('mono8', 64, 32, rng.randint(0, 256, 64 * 32).astype(np.uint8).tobytes())
-                msg.header.stamp = rospy.Time.from_sec(stamp)
-                frames.publish(msg)
-                time.sleep(0.05)
+                publish(stamp)
             fx.wait_for(lambda: self.rosout.matching('Not recording frames stamped before the last keyframe',
                                                      Log.WARN), 10, 'the recorder to say time went back')
             seen = self.diagnostics.next_status(
@@ -278,25 +255,9 @@ class RobustnessTest(unittest.TestCase):
         folder = os.path.join(self.tmp, 'gone')
         os.makedirs(folder)
         path = os.path.join(folder, 'map.bag')
-        topic = '/gone_test/image_preprocessed'
-        announced = rospy.wait_for_message('/repeat/preprocessing_params', String, timeout=10)
-        params = rospy.Publisher('/gone_test/preprocessing_params', String, queue_size=1, latch=True)
-        params.publish(announced)
-        frames = rospy.Publisher(topic, Image, queue_size=100)
-        rospy.set_param(name + '/map', path)
-        rospy.set_param(name + '/flush_period', 0.1)
-        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
-            name, 'along_route_localization/map_recorder', ['/repeat/image_preprocessed'], [topic], [], '')
-        self.assertTrue(loaded.success)
-        rng = np.random.RandomState(5)
-
-        def publish(stamp):
-            msg = image('mono8', 64, 32, rng.randint(0, 256, 64 * 32).astype(np.uint8).tobytes())
-            msg.header.stamp = rospy.Time.from_sec(stamp)
-            frames.publish(msg)
-            time.sleep(0.05)
         try:
-            fx.wait_for(lambda: frames.get_num_connections() > 0, 10, 'the recorder to subscribe')
+            publish = self.load_recorder(name, {'map': path, 'flush_period': 0.1}, '/gone_test/image_preprocessed',
+                                         seed=5)
             publish(200.0)
             publish(200.1)
             self.diagnostics.next_status('repeat/gone_recorder: recording',
@@ -338,13 +299,9 @@ class RobustnessTest(unittest.TestCase):
                                     ('maybe', 'recording, waiting for images on /autostart_test/image_preprocessed',
                                      "~autostart = 'maybe' is not true or false; using true")):
             name = '/repeat/autostart_recorder'
-            rospy.set_param(name + '/map', os.path.join(self.tmp, 'autostart_map.bag'))
-            rospy.set_param(name + '/autostart', given)
-            loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
-                name, 'along_route_localization/map_recorder', ['/repeat/image_preprocessed'],
-                ['/autostart_test/image_preprocessed'], [], '')
-            self.assertTrue(loaded.success)
             try:
+                self.load_recorder(name, {'map': os.path.join(self.tmp, 'autostart_map.bag'), 'autostart': given},
+                                   '/autostart_test/image_preprocessed')
                 status = self.diagnostics.next_status('repeat/autostart_recorder: recording', lambda s: True,
                                                       'the recorder to report (autostart %r)' % given)
                 self.assertEqual(status.message, state)
@@ -443,6 +400,37 @@ class RobustnessTest(unittest.TestCase):
         fx.wait_for_service('/repeat/localizer/load_map')
         self.assertTrue(rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(self.map_path).success)
         self.drive_teach_frames(self.localizations, 'localizations from the reloaded localizer', count=20)
+
+    def load_recorder(self, name, params, topic=None, seed=0):
+        """Loads a map recorder `name` into the running manager with the private parameters `params` (`map`
+        among them). With `topic`, it records that topic instead of /repeat/image_preprocessed (frames a test
+        stamps as it likes then reach no localizer), the repeat preprocessor's parameters announced beside
+        it; it returns a function that publishes a random 64x32 mono8 frame there at a stamp (s)."""
+        for key, value in params.items():
+            rospy.set_param(name + '/' + key, value)
+        remap_from, remap_to = [], []
+        if topic:
+            announced = rospy.wait_for_message('/repeat/preprocessing_params', String, timeout=10)
+            announcer = rospy.Publisher(topic.rsplit('/', 1)[0] + '/preprocessing_params', String, queue_size=1,
+                                        latch=True)
+            announcer.publish(announced)
+            self.announcers.append(announcer)  # latched: kept for the recorder
+            frames = rospy.Publisher(topic, Image, queue_size=100)
+            remap_from, remap_to = ['/repeat/image_preprocessed'], [topic]
+        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
+            name, 'along_route_localization/map_recorder', remap_from, remap_to, [], '')
+        self.assertTrue(loaded.success)
+        if not topic:
+            return None
+        fx.wait_for(lambda: frames.get_num_connections() > 0, 10, 'the recorder to subscribe')
+        rng = np.random.RandomState(seed)
+
+        def publish(stamp):
+            msg = image('mono8', 64, 32, rng.randint(0, 256, 64 * 32).astype(np.uint8).tobytes())
+            msg.header.stamp = rospy.Time.from_sec(stamp)
+            frames.publish(msg)
+            time.sleep(0.05)
+        return publish
 
     def load_localizer(self, name, params, output):
         """Loads another localizer `name` into the running manager, with the map and the private
