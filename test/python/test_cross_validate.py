@@ -193,6 +193,33 @@ class BadInputTest(unittest.TestCase):
         finally:
             shutil.rmtree(tmp)
 
+    def test_map_season_winter_makes_folds_with_the_winter_frames_as_the_map(self):
+        import shutil
+        import tempfile
+        import cv2
+        import numpy as np
+        tmp = tempfile.mkdtemp(prefix="test_cross_validate_season_")
+        try:
+            data = os.path.join(tmp, "data")
+            for season, offset in (("summer", 0), ("winter", 100)):
+                os.makedirs(os.path.join(data, season))
+                for k in range(60):
+                    cv2.imwrite(os.path.join(data, season, "images-%05d.png" % k),
+                                np.full((4, 8), offset + k, np.uint8))
+            # /bin/true writes no results: the run stops at the first evaluation, after the folds are made
+            code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv"), "--folds", "2",
+                                      "--fold-size", "30", "--seeds", "1", "--map-season", "winter",
+                                      "--localize-offline", "/bin/true")
+            self.assertEqual(code, 1, err)
+            fold2 = os.path.join(tmp, "cv", "folds", "fold2")
+            for scenario in ("aligned", os.path.join("seed1", "stop_and_go")):
+                self.assertEqual(os.path.realpath(os.path.join(fold2, scenario, "map", "00000.png")),
+                                 os.path.realpath(os.path.join(data, "winter", "images-00030.png")))
+            self.assertEqual(os.path.realpath(os.path.join(fold2, "aligned", "query", "00000.png")),
+                             os.path.realpath(os.path.join(data, "summer", "images-00030.png")))
+        finally:
+            shutil.rmtree(tmp)
+
 
 if __name__ == "__main__":
     unittest.main()

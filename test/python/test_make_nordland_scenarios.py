@@ -200,6 +200,30 @@ class WriteTest(unittest.TestCase):
         rows = self.ground_truth("spacing_2to1")
         self.assertEqual([int(r["keyframe_stationary"]) for r in rows[3:7]], [1, 1, 0, 0])
 
+    def test_map_season_winter_swaps_the_roles(self):
+        # summer frames 4 and 5 identical (the summer train stands): with the winter map they are query frames
+        self.cv2.imwrite(os.path.join(self.data, "summer", "images-00060.png"),
+                         self.cv2.imread(os.path.join(self.data, "summer", "images-00050.png")))
+        code, err = self.run_main(["--output", self.out, "--data", self.data, "--map-season", "winter",
+                                   "--scenarios", "aligned,spacing_2to1,stop_and_go,distractors", "--distractors", "5"])
+        self.assertEqual(code, 0, err)
+        self.assertEqual(os.path.realpath(os.path.join(self.out, "aligned", "map", "00003.png")),
+                         os.path.realpath(os.path.join(self.data, "winter", "images-00040.png")))
+        self.assertEqual(os.path.realpath(os.path.join(self.out, "aligned", "query", "00003.png")),
+                         os.path.realpath(os.path.join(self.data, "summer", "images-00040.png")))
+        self.assertEqual(os.path.realpath(os.path.join(self.out, "spacing_2to1", "map", "00002.png")),
+                         os.path.realpath(os.path.join(self.data, "winter", "images-00050.png")))
+        rows = self.ground_truth("aligned")
+        self.assertEqual([int(r["query_stationary"]) for r in rows], [1 if k in (4, 5) else 0 for k in range(12)])
+        self.assertEqual([int(r["keyframe_stationary"]) for r in rows], [0] * 12)
+        for r in self.ground_truth("stop_and_go"):   # each query image is the summer frame its ground truth names
+            image = self.cv2.imread(os.path.join(self.out, "stop_and_go", "query", "%05d.png" % int(r["query_index"])))
+            keyframe = int(r["keyframe"])
+            self.assertEqual(int(image[0, 3, 0]), 10 * (4 if keyframe == 5 else keyframe) + 40)
+            self.assertEqual(r["query_source"], "summer/images-%05d.png" % (10 * (int(r["keyframe"]) + 1)))
+        with open(os.path.join(self.out, "distractors", "distractors.csv")) as f:
+            self.assertEqual({r["season"] for r in csv.DictReader(f)}, {"winter"}, "the map's season by default")
+
     def test_shifted_frames_are_new_files_with_replicated_edges(self):
         # make stretches start early by shifting every frame: patch the scenario's shift schedule
         original = scenarios.heading_offsets

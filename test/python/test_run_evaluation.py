@@ -189,5 +189,18 @@ class NordlandRunTest(unittest.TestCase):
                 truths.append(f.read())
         self.assertNotEqual(truths[0], truths[1])
 
+    def test_map_season_winter_maps_the_winter_frames_and_queries_the_summer_ones(self):
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
+            code = evaluation.main(["--output", self.out, "--data", self.data, "--scenarios", "aligned",
+                                    "--methods", "dtw", "--first", "300", "--count", "60", "--extra-seeds", "none",
+                                    "--map-season", "winter", "--localize-offline", self.binary])
+        self.assertEqual(code, 0, err.getvalue())
+        names = sorted(n for n in os.listdir(os.path.join(self.data, "winter")) if n.endswith(".png"))
+        for part, season in (("map", "winter"), ("query", "summer")):
+            self.assertEqual(os.path.realpath(os.path.join(self.out, "scenarios", "aligned", part, "00000.png")),
+                             os.path.realpath(os.path.join(self.data, season, names[300])))
+        with open(os.path.join(self.out, "results.md")) as f:
+            self.assertIn("(winter = map, summer = query)", f.read())
+
 if __name__ == "__main__":
     unittest.main()
