@@ -61,6 +61,27 @@ class MeasureNodeletCpuRateTest(unittest.TestCase):
                 self.assertIn("RATE_HZ must be a number in (0, 10000], not '%s'" % rate, result.stderr)
             self.assertFalse(os.path.exists(marker))
 
+    def test_a_route_map_that_is_no_map_is_an_error_not_a_measurement(self):
+        # A camera bag given as route_map.bag was measured without a word: no localizer line, exit 0.
+        import shutil
+        if not shutil.which('roslaunch', path='/usr/bin:' + os.environ.get('PATH', '')):
+            self.skipTest('needs ROS (roslaunch) and the sourced workspace')
+        with tempfile.TemporaryDirectory() as tmp:
+            write = ('import rosbag, rospy, sys\n'
+                     'from sensor_msgs.msg import Image\n'
+                     'with rosbag.Bag(sys.argv[1], "w") as bag:\n'
+                     '    for k in range(3):\n'
+                     '        m = Image(height=32, width=64, encoding="mono8", step=64, data=bytes(2048))\n'
+                     '        m.header.stamp = rospy.Time(100 + 0.1 * k)\n'
+                     '        bag.write("/camera/image_raw", m, m.header.stamp)\n')
+            for name in ('repeat.bag', 'route_map.bag'):
+                subprocess.run(['/usr/bin/python3', '-c', write, os.path.join(tmp, name)], check=True)
+            result = run('measure_nodelet_cpu', tmp, '30', cwd=tmp)
+            self.assertEqual(result.returncode, 1, result.stdout + result.stderr)
+            self.assertIn('the localizer has no map from %s' % os.path.join(tmp, 'route_map.bag'), result.stderr)
+            self.assertIn('not a map', result.stderr)  # the map reader's own reason
+            self.assertNotIn('of one core', result.stdout)
+
 
 class RunBenchmarksExitTest(unittest.TestCase):
     """A failing benchmark printed its table and exited 0; --repetitions -4 ran once; --from-json of a missing
