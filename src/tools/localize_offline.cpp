@@ -45,6 +45,7 @@ void usage(std::ostream& out, bool with_advanced = false)
   out << "usage: localize_offline --map PATH --query PATH --output results.csv [--params params.yaml]\n"
          "                        [--method dtw|seqslam] [--topic TOPIC] [--set name=value ...]\n"
          "                        [--save-map MAP_FILE] [--progress auto|bar|lines|off] [--quiet]\n"
+         "       localize_offline --check-params [--params params.yaml] [--method dtw|seqslam] [--set name=value ...]\n"
          "       localize_offline --help | --help-advanced\n"
          "  PATH: a folder of images (sorted by file name), a bag with an image topic, or a map file\n"
          "        written by the map recorder (its stored preprocessing parameters are used; any given\n"
@@ -56,6 +57,9 @@ void usage(std::ostream& out, bool with_advanced = false)
          "        localizer:; map_recorder: and route_follower: are skipped). A value that does not parse or an\n"
          "        unknown name is refused and a number outside its range is corrected, each with a warning;\n"
          "        the others are used. --set overrides one parameter (any problem with it is an error).\n"
+         "  --check-params: check --params, --method and --set as a run does before it reads its inputs, then\n"
+         "        exit: 0 if a run takes them, 2 with the reason if not (what depends on the map, such as a\n"
+         "        start_keyframe beyond it or a map file's own preprocessing, is checked by the run).\n"
          "  --progress: on stderr, while loading and localizing: a line redrawn in place (bar), a line at every\n"
          "        10 % (lines), nothing (off); auto (default): bar on a terminal, else lines after 2 s; off with --quiet.\n"
          "  Output CSV columns: query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n"
@@ -169,6 +173,7 @@ int main(int argc, char** argv)
   std::string map_path, query_path, output_path, params_path, method, topic, save_map_path;
   std::vector<std::pair<std::string, std::string>> overrides;
   bool quiet = false;
+  bool check_params_only = false;
   ProgressMode progress_mode = ProgressMode::kAuto;
   bool progress_given = false;
   for (int i = 1; i < argc; ++i)
@@ -209,6 +214,8 @@ int main(int argc, char** argv)
     }
     else if (arg == "--quiet")
       quiet = true;
+    else if (arg == "--check-params")
+      check_params_only = true;
     else if (arg == "--progress")
     {
       const std::string mode = value();
@@ -243,7 +250,12 @@ int main(int argc, char** argv)
   }
   if (quiet && !progress_given)
     progress_mode = ProgressMode::kOff;
-  if (map_path.empty() || query_path.empty() || output_path.empty())
+  if (check_params_only && !(map_path.empty() && query_path.empty() && output_path.empty() && save_map_path.empty()))
+  {
+    std::cerr << "localize_offline: --check-params reads no map, query or output: give them to a run instead\n";
+    return 2;
+  }
+  if (!check_params_only && (map_path.empty() || query_path.empty() || output_path.empty()))
   {
     std::cerr << "localize_offline: --map, --query and --output are required\n";
     usage(std::cerr);
@@ -295,6 +307,12 @@ int main(int argc, char** argv)
   {
     std::cerr << "localize_offline: invalid localizer parameters: " << invalid << "\n";
     return 2;
+  }
+  if (check_params_only)
+  {
+    // A warning above (a --params entry corrected or skipped) is not a refusal: a run goes on with it too.
+    std::cout << "localize_offline: the parameters are valid\n";
+    return 0;
   }
   // No output may replace an input or the other output (a results file written over the query bag lost
   // the drive).

@@ -193,6 +193,32 @@ class BadInputTest(unittest.TestCase):
         finally:
             shutil.rmtree(tmp)
 
+    def test_a_candidate_the_localizer_refuses_is_named_before_any_fold_is_made(self):
+        import shutil
+        import tempfile
+        from scripts_under_test import built_executable
+        binary = built_executable("localize_offline")
+        if not binary:
+            self.skipTest("localize_offline not built (source the catkin workspace)")
+        tmp = tempfile.mkdtemp(prefix="test_cross_validate_candidate_")
+        try:
+            data = os.path.join(tmp, "data")
+            for season in ("summer", "winter"):
+                os.makedirs(os.path.join(data, season))
+                for k in range(60):
+                    open(os.path.join(data, season, "images-%05d.png" % k), "w").close()
+            candidates = os.path.join(tmp, "candidates.txt")
+            with open(candidates, "w") as f:
+                f.write("defaults:\nsteep: max_step=3\ntypo: max_stpe=3\n")
+            code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv"), "--folds", "2",
+                                      "--fold-size", "30", "--candidates", candidates, "--localize-offline", binary)
+            self.assertEqual(code, 1)
+            self.assertIn("candidate typo: ", err)
+            self.assertIn("unknown parameter 'max_stpe'", err)
+            self.assertFalse(os.path.exists(os.path.join(tmp, "cv")), "nothing made before the check")
+        finally:
+            shutil.rmtree(tmp)
+
     def test_map_season_winter_makes_folds_with_the_winter_frames_as_the_map(self):
         import shutil
         import tempfile

@@ -150,6 +150,26 @@ class LocalizeOfflineTest(unittest.TestCase):
                          '/no/such/query')
         self.assertFalse(os.path.exists(output))
 
+    def test_check_params_answers_as_a_run_would_without_any_input(self):
+        params = os.path.join(self.tmp, 'check_params.yaml')
+        with open(params, 'w') as f:
+            f.write('localizer:\n  max_step: 3\n')
+        ok = self.run_runner('--check-params', '--params', params, '--method', 'seqslam', '--set', 'ring_buffer_rows=20')
+        self.assertEqual(ok.returncode, 0, ok.stderr)
+        self.assertIn('the parameters are valid', ok.stdout)
+        # each refused as the run refuses it: a value out of range, an unknown name, a bad method
+        for args, reason in ((['--set', 'max_step=0'], "parameter 'max_step' must be in 1 .. 16"),
+                             (['--set', 'no_such_parameter=1'], "unknown parameter 'no_such_parameter'"),
+                             (['--method', 'hmm'], '--method must be dtw or seqslam'),
+                             (['--params', '/no/such/params.yaml'], '/no/such/params.yaml')):
+            self.assertFails(self.run_runner('--check-params', *args), reason)
+            output = os.path.join(self.tmp, 'check_params.csv')
+            self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output, *args),
+                             reason)
+            self.assertFalse(os.path.exists(output))
+        # it reads no input: given one, it says so rather than ignoring it
+        self.assertFails(self.run_runner('--check-params', '--map', self.map_dir), 'reads no map, query or output')
+
     def test_empty_folder(self):
         self.assertFails(self.run_runner('--map', self.empty_dir, '--query', self.map_dir, '--output',
                                          os.path.join(self.tmp, 'empty.csv')), self.empty_dir)

@@ -84,6 +84,32 @@ class BadInputTest(unittest.TestCase):
             shutil.rmtree(tmp)
 
 
+    def test_a_setting_the_localizer_refuses_is_refused_before_the_output_is_touched(self):
+        # Found at the first run, after the scenarios of an earlier evaluation in OUTPUT had been made again.
+        binary = built_executable("localize_offline")
+        if not binary:
+            self.skipTest("localize_offline not built (source the catkin workspace)")
+        tmp = tempfile.mkdtemp(prefix="test_run_evaluation_set_")
+        try:
+            data = os.path.join(tmp, "data")
+            for season in ("summer", "winter"):
+                os.makedirs(os.path.join(data, season))
+            output = os.path.join(tmp, "out")
+            os.makedirs(os.path.join(output, "scenarios"))
+            with open(os.path.join(output, "results.md"), "w") as f:
+                f.write("an earlier evaluation\n")
+            err = io.StringIO()
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                code = evaluation.main(["--data", data, "--output", output, "--folds", "0", "--extra-seeds", "none",
+                                        "--set", "max_step=0", "--localize-offline", binary])
+            self.assertNotEqual(code, 0)
+            self.assertIn("parameter 'max_step' must be in 1 .. 16", err.getvalue())
+            self.assertEqual(sorted(os.listdir(output)), ["results.md", "scenarios"])
+            self.assertEqual(os.listdir(os.path.join(output, "scenarios")), [])
+        finally:
+            shutil.rmtree(tmp)
+
+
 class ParameterSensitivityCommandTest(unittest.TestCase):
     """scripts/parameter_sensitivity runs run_evaluation once per setting: the command it builds must be
     one run_evaluation takes (with --set and no --folds 0 it refused every setting but the defaults)."""
