@@ -215,6 +215,26 @@ class NordlandRunTest(unittest.TestCase):
                 truths.append(f.read())
         self.assertNotEqual(truths[0], truths[1])
 
+    def test_the_cross_validated_table_comes_again_with_the_roles_swapped(self):
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
+            code = evaluation.main(["--output", self.out, "--data", self.data, "--scenarios", "aligned",
+                                    "--methods", "dtw", "--first", "300", "--count", "40", "--extra-seeds", "none",
+                                    "--folds", "2", "--localize-offline", self.binary])
+        self.assertEqual(code, 0, err.getvalue())
+        names = sorted(n for n in os.listdir(os.path.join(self.data, "winter")) if n.endswith(".png"))
+        for folder, map_season in (("cv", "summer"), ("cv_winter", "winter")):
+            self.assertEqual(os.path.realpath(os.path.join(self.out, folder, "folds", "fold2", "aligned", "map",
+                                                           "00000.png")),
+                             os.path.realpath(os.path.join(self.data, map_season, names[298])))
+        with open(os.path.join(self.out, "results.md")) as f:
+            text = f.read()
+        with open(os.path.join(self.out, "cv_winter", "cv.md")) as f:
+            swapped = f.read().strip()
+        self.assertIn("## Cross-validated, the roles swapped (winter map, summer query", text)
+        self.assertIn(swapped, text)
+        self.assertTrue(swapped.startswith("Map: the winter frames; query: the summer frames."), swapped[:80])
+        self.assertFalse(evaluation.parse_args(["--no-swapped-roles"]).swapped_roles)
+
     def test_map_season_winter_maps_the_winter_frames_and_queries_the_summer_ones(self):
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
             code = evaluation.main(["--output", self.out, "--data", self.data, "--scenarios", "aligned",
