@@ -34,3 +34,19 @@ def ros_python_available():
     except ImportError:
         return False
     return True
+
+
+def fake_nordland(folder, frames=0, image=None):
+    """Makes folder/summer and folder/winter, each with `frames` files images-NNNNN.png: image(season, k) (a
+    uint8 array) written as a PNG when given, else empty files (enough for scripts that only list them).
+    Returns folder."""
+    for season in ("summer", "winter"):
+        os.makedirs(os.path.join(folder, season))
+        for k in range(frames):
+            path = os.path.join(folder, season, "images-%05d.png" % k)
+            if image is None:
+                open(path, "w").close()
+            else:
+                import cv2
+                cv2.imwrite(path, image(season, k))
+    return folder

@@ -9,7 +9,7 @@ import unittest
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # finds scripts_under_test
-from scripts_under_test import built_executable, load
+from scripts_under_test import built_executable, fake_nordland, load
 
 cross_validate = load("cross_validate")
 scenarios = load("make_nordland_scenarios")
@@ -160,8 +160,7 @@ class BadInputTest(unittest.TestCase):
         import tempfile
         tmp = tempfile.mkdtemp(prefix="test_cross_validate_data_")
         try:
-            for season in ("summer", "winter"):
-                os.makedirs(os.path.join(tmp, season))
+            fake_nordland(tmp)
             code, err = self.run_main("--data", tmp, "--output", os.path.join(tmp, "cv"), "--folds", "2",
                                       "--fold-size", "30", "--localize-offline", "/bin/true")
             self.assertEqual(code, 1)
@@ -196,17 +195,12 @@ class BadInputTest(unittest.TestCase):
     def test_a_candidate_the_localizer_refuses_is_named_before_any_fold_is_made(self):
         import shutil
         import tempfile
-        from scripts_under_test import built_executable
         binary = built_executable("localize_offline")
         if not binary:
             self.skipTest("localize_offline not built (source the catkin workspace)")
         tmp = tempfile.mkdtemp(prefix="test_cross_validate_candidate_")
         try:
-            data = os.path.join(tmp, "data")
-            for season in ("summer", "winter"):
-                os.makedirs(os.path.join(data, season))
-                for k in range(60):
-                    open(os.path.join(data, season, "images-%05d.png" % k), "w").close()
+            data = fake_nordland(os.path.join(tmp, "data"), 60)
             candidates = os.path.join(tmp, "candidates.txt")
             with open(candidates, "w") as f:
                 f.write("defaults:\nsteep: max_step=3\ntypo: max_stpe=3\n")
@@ -222,16 +216,11 @@ class BadInputTest(unittest.TestCase):
     def test_map_season_winter_makes_folds_with_the_winter_frames_as_the_map(self):
         import shutil
         import tempfile
-        import cv2
         import numpy as np
         tmp = tempfile.mkdtemp(prefix="test_cross_validate_season_")
         try:
-            data = os.path.join(tmp, "data")
-            for season, offset in (("summer", 0), ("winter", 100)):
-                os.makedirs(os.path.join(data, season))
-                for k in range(60):
-                    cv2.imwrite(os.path.join(data, season, "images-%05d.png" % k),
-                                np.full((4, 8), offset + k, np.uint8))
+            data = fake_nordland(os.path.join(tmp, "data"), 60,
+                                 lambda season, k: np.full((4, 8), (season == "winter") * 100 + k, np.uint8))
             # /bin/true writes no results: the run stops at the first evaluation, after the folds are made
             code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv"), "--folds", "2",
                                       "--fold-size", "30", "--seeds", "1", "--map-season", "winter",

@@ -12,7 +12,7 @@ import tempfile
 import unittest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # finds scripts_under_test
-from scripts_under_test import built_executable, load
+from scripts_under_test import built_executable, fake_nordland, load
 
 evaluation = load("run_evaluation")
 
@@ -70,8 +70,7 @@ class BadInputTest(unittest.TestCase):
         # inside the data folder.
         tmp = tempfile.mkdtemp(prefix="test_run_evaluation_data_")
         try:
-            for season in ("summer", "winter"):
-                os.makedirs(os.path.join(tmp, season))
+            fake_nordland(tmp)
             before = sorted(os.listdir(tmp))
             err = io.StringIO()
             with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
@@ -83,7 +82,6 @@ class BadInputTest(unittest.TestCase):
         finally:
             shutil.rmtree(tmp)
 
-
     def test_a_setting_the_localizer_refuses_is_refused_before_the_output_is_touched(self):
         # Found at the first run, after the scenarios of an earlier evaluation in OUTPUT had been made again.
         binary = built_executable("localize_offline")
@@ -91,9 +89,7 @@ class BadInputTest(unittest.TestCase):
             self.skipTest("localize_offline not built (source the catkin workspace)")
         tmp = tempfile.mkdtemp(prefix="test_run_evaluation_set_")
         try:
-            data = os.path.join(tmp, "data")
-            for season in ("summer", "winter"):
-                os.makedirs(os.path.join(data, season))
+            data = fake_nordland(os.path.join(tmp, "data"))
             output = os.path.join(tmp, "out")
             os.makedirs(os.path.join(output, "scenarios"))
             with open(os.path.join(output, "results.md"), "w") as f:
@@ -215,13 +211,17 @@ class NordlandRunTest(unittest.TestCase):
                 truths.append(f.read())
         self.assertNotEqual(truths[0], truths[1])
 
-    def test_the_cross_validated_table_comes_again_with_the_roles_swapped(self):
+    def run_aligned(self, count, *options):
+        """run_evaluation on aligned from frame 300 on; returns the Nordland file names in order."""
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
             code = evaluation.main(["--output", self.out, "--data", self.data, "--scenarios", "aligned",
-                                    "--methods", "dtw", "--first", "300", "--count", "40", "--extra-seeds", "none",
-                                    "--folds", "2", "--localize-offline", self.binary])
+                                    "--methods", "dtw", "--first", "300", "--count", str(count), "--extra-seeds",
+                                    "none", "--localize-offline", self.binary] + list(options))
         self.assertEqual(code, 0, err.getvalue())
-        names = sorted(n for n in os.listdir(os.path.join(self.data, "winter")) if n.endswith(".png"))
+        return sorted(n for n in os.listdir(os.path.join(self.data, "winter")) if n.endswith(".png"))
+
+    def test_the_cross_validated_table_comes_again_with_the_roles_swapped(self):
+        names = self.run_aligned(40, "--folds", "2")
         for folder, map_season in (("cv", "summer"), ("cv_winter", "winter")):
             self.assertEqual(os.path.realpath(os.path.join(self.out, folder, "folds", "fold2", "aligned", "map",
                                                            "00000.png")),
@@ -236,12 +236,7 @@ class NordlandRunTest(unittest.TestCase):
         self.assertFalse(evaluation.parse_args(["--no-swapped-roles"]).swapped_roles)
 
     def test_map_season_winter_maps_the_winter_frames_and_queries_the_summer_ones(self):
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
-            code = evaluation.main(["--output", self.out, "--data", self.data, "--scenarios", "aligned",
-                                    "--methods", "dtw", "--first", "300", "--count", "60", "--extra-seeds", "none",
-                                    "--map-season", "winter", "--localize-offline", self.binary])
-        self.assertEqual(code, 0, err.getvalue())
-        names = sorted(n for n in os.listdir(os.path.join(self.data, "winter")) if n.endswith(".png"))
+        names = self.run_aligned(60, "--map-season", "winter")
         for part, season in (("map", "winter"), ("query", "summer")):
             self.assertEqual(os.path.realpath(os.path.join(self.out, "scenarios", "aligned", part, "00000.png")),
                              os.path.realpath(os.path.join(self.data, season, names[300])))
