@@ -311,7 +311,12 @@ int main(int argc, char** argv)
   if (check_params_only)
   {
     // A warning above (a --params entry corrected or skipped) is not a refusal: a run goes on with it too.
-    std::cout << "localize_offline: the parameters are valid\n";
+    if (refused.empty())
+      std::cout << "localize_offline: the parameters are valid\n";
+    else
+      std::cout << "localize_offline: a run takes these parameters, with the " << refused.size()
+                << (refused.size() == 1 ? " entry" : " entries") << " of " << params_path
+                << " warned of above corrected or skipped\n";
     return 0;
   }
   // No output may replace an input or the other output (a results file written over the query bag lost

@@ -167,6 +167,14 @@ class LocalizeOfflineTest(unittest.TestCase):
             self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output, *args),
                              reason)
             self.assertFalse(os.path.exists(output))
+        # a params file a run corrects is taken, and said to be corrected, not called valid
+        with open(params, 'w') as f:
+            f.write('localizer:\n  max_step: 99\n  no_such_parameter: 1\n')
+        corrected = self.run_runner('--check-params', '--params', params)
+        self.assertEqual(corrected.returncode, 0, corrected.stderr)
+        self.assertIn('max_step 99 is outside 1 .. 16', corrected.stderr)
+        self.assertIn('with the 2 entries of %s warned of above corrected or skipped' % params, corrected.stdout)
+        self.assertNotIn('valid', corrected.stdout)
         # it reads no input: given one, it says so rather than ignoring it
         self.assertFails(self.run_runner('--check-params', '--map', self.map_dir), 'reads no map, query or output')
 
