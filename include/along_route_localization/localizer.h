@@ -192,6 +192,10 @@ struct LocalizerParams
   bool parallel = true;               ///< spread global searches over cores
 
   std::string validate() const;
+  /// What the images' size refuses (empty: nothing): max_shift_px below half the width, shift_bands at most
+  /// the compared rows (the rows from first_compared_row down). The localizer checks it against its map;
+  /// localize_offline --check-params against the preprocessing's output size.
+  std::string validateForImages(int width, int height, int first_compared_row) const;
 };
 
 /// What the robot's own motion sensing (wheel odometry, or the velocity it was commanded) says it did since

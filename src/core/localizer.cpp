@@ -85,6 +85,17 @@ std::string LocalizerParams::validate() const
   return e.str();
 }
 
+std::string LocalizerParams::validateForImages(int width, int height, int first_compared_row) const
+{
+  const int compared_rows = height - first_compared_row;
+  if (2 * max_shift_px >= width)
+    return "max_shift_px must be below half the image width (" + std::to_string(width) + " px)";
+  if (shift_bands > compared_rows)
+    return "shift_bands must be at most the compared rows (" + std::to_string(compared_rows) + "), got " +
+           std::to_string(shift_bands);
+  return std::string();
+}
+
 namespace
 {
 
@@ -197,15 +208,11 @@ void Localizer::start()
 void Localizer::setParams(const LocalizerParams& params)
 {
   std::string invalid = params.validate();
-  if (invalid.empty() && 2 * params.max_shift_px >= map_->width())
-    invalid = "max_shift_px must be below half the image width (" + std::to_string(map_->width()) + " px)";
+  if (invalid.empty())
+    invalid = params.validateForImages(map_->width(), map_->height(), firstComparedRow());
   if (invalid.empty() && params.start_keyframe >= static_cast<int>(map_->size()))
     invalid = "start_keyframe must be below the map's " + std::to_string(map_->size()) + " keyframes, got " +
               std::to_string(params.start_keyframe) + " (-1: unknown, search the whole map)";
-  const int compared_rows = map_->height() - firstComparedRow();
-  if (invalid.empty() && params.shift_bands > compared_rows)
-    invalid = "shift_bands must be at most the compared rows (" + std::to_string(compared_rows) + "), got " +
-              std::to_string(params.shift_bands);
   if (!invalid.empty())
     throw std::invalid_argument("invalid localizer parameters: " + invalid);
   const bool comparators_changed = !difference_ || params.max_shift_px != params_.max_shift_px ||

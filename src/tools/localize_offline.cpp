@@ -57,9 +57,9 @@ void usage(std::ostream& out, bool with_advanced = false)
          "        localizer:; map_recorder: and route_follower: are skipped). A value that does not parse or an\n"
          "        unknown name is refused and a number outside its range is corrected, each with a warning;\n"
          "        the others are used. --set overrides one parameter (any problem with it is an error).\n"
-         "  --check-params: check --params, --method and --set as a run does before it reads its inputs, then\n"
-         "        exit: 0 if a run takes them, 2 with the reason if not (what depends on the map, such as a\n"
-         "        start_keyframe beyond it or a map file's own preprocessing, is checked by the run).\n"
+         "  --check-params: check --params, --method and --set as a run on folders or bags of images does, then\n"
+         "        exit: 0 if it takes them, 2 with the reason if not (what a map file's own preprocessing or\n"
+         "        the map's length refuses, such as a start_keyframe beyond it, is checked by the run).\n"
          "  --progress: on stderr, while loading and localizing: a line redrawn in place (bar), a line at every\n"
          "        10 % (lines), nothing (off); auto (default): bar on a terminal, else lines after 2 s; off with --quiet.\n"
          "  Output CSV columns: query_index,keyframe,confidence,shift_px,homing_angle_rad,status\n"
@@ -310,6 +310,16 @@ int main(int argc, char** argv)
   }
   if (check_params_only)
   {
+    // What the images' size refuses, for images preprocessed with these parameters (a map file brings its
+    // own, checked by the run).
+    const int height = preprocessing.output_height;
+    const std::string invalid_for_images = localizer_params.validateForImages(
+        preprocessing.output_width, height, std::min(preprocessing.skyRows(), height - 1));
+    if (!invalid_for_images.empty())
+    {
+      std::cerr << "localize_offline: invalid localizer parameters: " << invalid_for_images << "\n";
+      return 2;
+    }
     // A warning above (a --params entry corrected or skipped) is not a refusal: a run goes on with it too.
     if (refused.empty())
       std::cout << "localize_offline: the parameters are valid\n";

@@ -161,8 +161,13 @@ class LocalizeOfflineTest(unittest.TestCase):
         for args, reason in ((['--set', 'max_step=0'], "parameter 'max_step' must be in 1 .. 16"),
                              (['--set', 'no_such_parameter=1'], "unknown parameter 'no_such_parameter'"),
                              (['--method', 'hmm'], '--method must be dtw or seqslam'),
-                             (['--params', '/no/such/params.yaml'], '/no/such/params.yaml')):
-            self.assertFails(self.run_runner('--check-params', *args), reason)
+                             (['--params', '/no/such/params.yaml'], '/no/such/params.yaml'),
+                             (['--set', 'max_shift_px=40'], 'max_shift_px must be below half the image width (64 px)'),
+                             (['--set', 'sky_fraction=0.9', '--set', 'shift_bands=4'],
+                              'shift_bands must be at most the compared rows (3), got 4')):
+            check = self.run_runner('--check-params', *args)
+            self.assertFails(check, reason)
+            self.assertEqual(check.returncode, 2, check.stderr)
             output = os.path.join(self.tmp, 'check_params.csv')
             self.assertFails(self.run_runner('--map', self.map_dir, '--query', self.map_dir, '--output', output, *args),
                              reason)

@@ -201,9 +201,12 @@ class WriteTest(unittest.TestCase):
         self.assertEqual([int(r["keyframe_stationary"]) for r in rows[3:7]], [1, 1, 0, 0])
 
     def test_map_season_winter_swaps_the_roles(self):
-        # summer frames 4 and 5 identical (the summer train stands): with the winter map they are query frames
+        # summer frames 4 and 5 identical (the summer train stands): with the winter map they are query frames;
+        # summer frame 2 and winter frame 6 black (dark): the query's and the keyframe's flags of their season
         self.cv2.imwrite(os.path.join(self.data, "summer", "images-00060.png"),
                          self.cv2.imread(os.path.join(self.data, "summer", "images-00050.png")))
+        self.cv2.imwrite(os.path.join(self.data, "summer", "images-00030.png"), np.zeros((4, 8, 3), np.uint8))
+        self.cv2.imwrite(os.path.join(self.data, "winter", "images-00070.png"), np.zeros((4, 8, 3), np.uint8))
         code, err = self.run_main(["--output", self.out, "--data", self.data, "--map-season", "winter",
                                    "--scenarios", "aligned,spacing_2to1,stop_and_go,distractors", "--distractors", "5"])
         self.assertEqual(code, 0, err)
@@ -216,10 +219,16 @@ class WriteTest(unittest.TestCase):
         rows = self.ground_truth("aligned")
         self.assertEqual([int(r["query_stationary"]) for r in rows], [1 if k in (4, 5) else 0 for k in range(12)])
         self.assertEqual([int(r["keyframe_stationary"]) for r in rows], [0] * 12)
+        self.assertEqual([int(r["query_dark"]) for r in rows], [1 if k == 2 else 0 for k in range(12)])
+        self.assertEqual([int(r["keyframe_dark"]) for r in rows], [1 if k == 6 else 0 for k in range(12)])
+        # 2:1: query 5 -> keyframe 3 = winter frame 6 (dark); query 2 (summer frame 2) dark
+        rows = self.ground_truth("spacing_2to1")
+        self.assertEqual([int(r["keyframe_dark"]) for r in rows], [1 if k in (5, 6) else 0 for k in range(12)])
+        self.assertEqual([int(r["query_dark"]) for r in rows], [1 if k == 2 else 0 for k in range(12)])
         for r in self.ground_truth("stop_and_go"):   # each query image is the summer frame its ground truth names
             image = self.cv2.imread(os.path.join(self.out, "stop_and_go", "query", "%05d.png" % int(r["query_index"])))
             keyframe = int(r["keyframe"])
-            self.assertEqual(int(image[0, 3, 0]), 10 * (4 if keyframe == 5 else keyframe) + 40)
+            self.assertEqual(int(image[0, 3, 0]), 0 if keyframe == 2 else 10 * (4 if keyframe == 5 else keyframe) + 40)
             self.assertEqual(r["query_source"], "summer/images-%05d.png" % (10 * (int(r["keyframe"]) + 1)))
         with open(os.path.join(self.out, "distractors", "distractors.csv")) as f:
             self.assertEqual({r["season"] for r in csv.DictReader(f)}, {"winter"}, "the map's season by default")
@@ -244,6 +253,18 @@ class WriteTest(unittest.TestCase):
         np.testing.assert_array_equal(shifted[:, 3:], original_image[:, 1:6])
         shifted = self.cv2.imread(os.path.join(self.out, "heading_offset", "query", "00000.png"))
         np.testing.assert_array_equal(shifted[:, 6:], 255)   # moved 1 px left, right edge replicated
+
+    def test_a_rerun_without_bags_removes_the_earlier_runs_bags(self):
+        # a map.bag of an earlier run (perhaps of the other season) was left beside the new frames
+        if not ros_python_available():
+            self.skipTest("needs the ROS Python modules (rosbag)")
+        code, err = self.run_main(["--output", self.out, "--data", self.data, "--scenarios", "aligned", "--bags"])
+        self.assertEqual(code, 0, err)
+        self.assertTrue(os.path.exists(os.path.join(self.out, "aligned", "map.bag")))
+        code, err = self.run_main(["--output", self.out, "--data", self.data, "--scenarios", "aligned",
+                                   "--map-season", "winter"])
+        self.assertEqual(code, 0, err)
+        self.assertEqual(sorted(os.listdir(os.path.join(self.out, "aligned"))), ["ground_truth.csv", "map", "query"])
 
     def test_rerun_replaces_old_frames(self):
         self.assertEqual(self.run_main(["--output", self.out, "--data", self.data, "--scenarios", "aligned"])[0], 0)

@@ -83,27 +83,43 @@ class BadInputTest(unittest.TestCase):
             shutil.rmtree(tmp)
 
     def test_a_setting_the_localizer_refuses_is_refused_before_the_output_is_touched(self):
-        # Found at the first run, after the scenarios of an earlier evaluation in OUTPUT had been made again.
+        # Found at the first run, after the scenarios of an earlier evaluation in OUTPUT had been made again;
+        # a candidate of the cross-validation only after the whole evaluation.
         binary = built_executable("localize_offline")
         if not binary:
             self.skipTest("localize_offline not built (source the catkin workspace)")
         tmp = tempfile.mkdtemp(prefix="test_run_evaluation_set_")
         try:
             data = fake_nordland(os.path.join(tmp, "data"))
-            output = os.path.join(tmp, "out")
-            os.makedirs(os.path.join(output, "scenarios"))
-            with open(os.path.join(output, "results.md"), "w") as f:
-                f.write("an earlier evaluation\n")
-            err = io.StringIO()
-            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-                code = evaluation.main(["--data", data, "--output", output, "--folds", "0", "--extra-seeds", "none",
-                                        "--set", "max_step=0", "--localize-offline", binary])
-            self.assertNotEqual(code, 0)
-            self.assertIn("parameter 'max_step' must be in 1 .. 16", err.getvalue())
-            self.assertEqual(sorted(os.listdir(output)), ["results.md", "scenarios"])
-            self.assertEqual(os.listdir(os.path.join(output, "scenarios")), [])
+            candidates = os.path.join(tmp, "candidates.txt")
+            with open(candidates, "w") as f:
+                f.write("defaults:\ntypo: max_stpe=3\n")
+            for options, reason in ((["--folds", "0", "--set", "max_step=0"], "parameter 'max_step' must be in 1 .. 16"),
+                                    (["--candidates", candidates], "candidate typo: "),
+                                    (["--candidates", candidates], "unknown parameter 'max_stpe'"),
+                                    (["--candidates", os.path.join(tmp, "none.txt")], "none.txt")):
+                output = os.path.join(tmp, "out")
+                os.makedirs(os.path.join(output, "scenarios"))
+                with open(os.path.join(output, "results.md"), "w") as f:
+                    f.write("an earlier evaluation\n")
+                err = io.StringIO()
+                with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                    code = evaluation.main(["--data", data, "--output", output, "--extra-seeds", "none",
+                                            "--localize-offline", binary] + options)
+                self.assertNotEqual(code, 0, options)
+                self.assertIn(reason, err.getvalue())
+                self.assertNotIn("Traceback", err.getvalue())
+                self.assertEqual(sorted(os.listdir(output)), ["results.md", "scenarios"])
+                self.assertEqual(os.listdir(os.path.join(output, "scenarios")), [])
+                shutil.rmtree(output)
         finally:
             shutil.rmtree(tmp)
+
+    def test_the_swapped_table_says_which_map_no_default_was_chosen_on(self):
+        self.assertIn("winter map, summer query: the same places, a map the defaults were not chosen on",
+                      evaluation.swapped_heading("winter", "summer"))
+        self.assertIn("summer map, winter query: the roles the defaults were chosen in",
+                      evaluation.swapped_heading("summer", "winter"))
 
 
 class ParameterSensitivityCommandTest(unittest.TestCase):

@@ -64,7 +64,12 @@ class MeasureNodeletCpuRateTest(unittest.TestCase):
     def test_a_route_map_that_is_no_map_is_an_error_not_a_measurement(self):
         # A camera bag given as route_map.bag was measured without a word: no localizer line, exit 0.
         import shutil
-        if not shutil.which('roslaunch', path='/usr/bin:' + os.environ.get('PATH', '')):
+        import signal
+        import sys
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        from scripts_under_test import built_executable
+        if not shutil.which('roslaunch', path='/usr/bin:' + os.environ.get('PATH', '')) or \
+                not built_executable('localize_offline'):
             self.skipTest('needs ROS (roslaunch) and the sourced workspace')
         with tempfile.TemporaryDirectory() as tmp:
             write = ('import rosbag, rospy, sys\n'
@@ -76,9 +81,20 @@ class MeasureNodeletCpuRateTest(unittest.TestCase):
                      '        bag.write("/camera/image_raw", m, m.header.stamp)\n')
             for name in ('repeat.bag', 'route_map.bag'):
                 subprocess.run(['/usr/bin/python3', '-c', write, os.path.join(tmp, name)], check=True)
-            result = run('measure_nodelet_cpu', tmp, '30', cwd=tmp)
+            # Its own session: on a timeout the whole group (roscore, roslaunch) is stopped, not bash alone.
+            env = dict(os.environ, HOME=tmp, PATH='/usr/bin:' + os.environ.get('PATH', ''))
+            process = subprocess.Popen(['bash', os.path.join(SCRIPTS_DIR, 'measure_nodelet_cpu'), tmp, '30'], cwd=tmp,
+                                       env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                       universal_newlines=True, start_new_session=True)
+            try:
+                stdout, stderr = process.communicate(timeout=150)
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGINT)
+                stdout, stderr = process.communicate(timeout=30)
+                self.fail('measure_nodelet_cpu did not finish in 150 s: %s' % stderr)
+            result = subprocess.CompletedProcess(process.args, process.returncode, stdout, stderr)
             self.assertEqual(result.returncode, 1, result.stdout + result.stderr)
-            self.assertIn('the localizer has no map from %s' % os.path.join(tmp, 'route_map.bag'), result.stderr)
+            self.assertIn('the localizer cannot localize with %s' % os.path.join(tmp, 'route_map.bag'), result.stderr)
             self.assertIn('not a map', result.stderr)  # the map reader's own reason
             self.assertNotIn('of one core', result.stdout)
 
