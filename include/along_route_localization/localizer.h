@@ -193,10 +193,13 @@ struct LocalizerParams
 
   std::string validate() const;
   /// What the images' size refuses (empty: nothing): max_shift_px below half the width, shift_bands at most
-  /// the compared rows (the rows from first_compared_row down). The localizer checks it against its map;
-  /// localize_offline --check-params against the preprocessing's output size.
-  std::string validateForImages(int width, int height, int first_compared_row) const;
+  /// the compared rows (firstComparedRow on). The localizer checks it against its map's preprocessing;
+  /// localize_offline --check-params against the preprocessing it was given.
+  std::string validateForImages(const PreprocessingParams& images) const;
 };
+
+/// First image row compared for images preprocessed with `images`: below the sky rows, leaving at least one.
+int firstComparedRow(const PreprocessingParams& images);
 
 /// What the robot's own motion sensing (wheel odometry, or the velocity it was commanded) says it did since
 /// the previous frame (the localizer nodelet's optional motion topic).
@@ -461,7 +464,7 @@ private:
   /// before it in the window.
   bool gapRestartsTheSearch(int count) const { return count >= windowRows() - 1; }
   void rebuildComparators();
-  /// First image row compared: below the sky rows, leaving at least one row.
+  /// First image row compared in the map's images (the free function of that name).
   int firstComparedRow() const;
   /// The keyframe to report for a DTW match `dtw_keyframe` while tracking: inside a run of near-identical
   /// keyframes (the teach camera stood still, or saw nothing) the DTW cannot tell them apart, so the

@@ -85,9 +85,10 @@ std::string LocalizerParams::validate() const
   return e.str();
 }
 
-std::string LocalizerParams::validateForImages(int width, int height, int first_compared_row) const
+std::string LocalizerParams::validateForImages(const PreprocessingParams& images) const
 {
-  const int compared_rows = height - first_compared_row;
+  const int width = images.output_width;
+  const int compared_rows = images.output_height - along_route_localization::firstComparedRow(images);
   if (2 * max_shift_px >= width)
     return "max_shift_px must be below half the image width (" + std::to_string(width) + " px)";
   if (shift_bands > compared_rows)
@@ -209,7 +210,7 @@ void Localizer::setParams(const LocalizerParams& params)
 {
   std::string invalid = params.validate();
   if (invalid.empty())
-    invalid = params.validateForImages(map_->width(), map_->height(), firstComparedRow());
+    invalid = params.validateForImages(map_->params());
   if (invalid.empty() && params.start_keyframe >= static_cast<int>(map_->size()))
     invalid = "start_keyframe must be below the map's " + std::to_string(map_->size()) + " keyframes, got " +
               std::to_string(params.start_keyframe) + " (-1: unknown, search the whole map)";
@@ -325,9 +326,14 @@ void Localizer::classifyKeyframes()
     stats.run_last[k] = stats.run[k] == stats.run[k + 1] ? stats.run_last[k + 1] : k;
 }
 
+int firstComparedRow(const PreprocessingParams& images)
+{
+  return std::min(images.skyRows(), images.output_height - 1);  // at least one row below the sky
+}
+
 int Localizer::firstComparedRow() const
 {
-  return std::min(map_->params().skyRows(), map_->height() - 1);  // at least one row below the sky
+  return along_route_localization::firstComparedRow(map_->params());
 }
 
 void Localizer::rebuildComparators()

@@ -312,9 +312,7 @@ int main(int argc, char** argv)
   {
     // What the images' size refuses, for images preprocessed with these parameters (a map file brings its
     // own, checked by the run).
-    const int height = preprocessing.output_height;
-    const std::string invalid_for_images = localizer_params.validateForImages(
-        preprocessing.output_width, height, std::min(preprocessing.skyRows(), height - 1));
+    const std::string invalid_for_images = localizer_params.validateForImages(preprocessing);
     if (!invalid_for_images.empty())
     {
       std::cerr << "localize_offline: invalid localizer parameters: " << invalid_for_images << "\n";

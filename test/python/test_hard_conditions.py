@@ -227,13 +227,17 @@ class SetReachesTheRunnerTest(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("unknown parameter 'no_such_parameter'", err)
 
-    def test_a_seed_range_past_the_bound_is_refused(self):
-        # 1-100000000 built the list and ran out of memory (a traceback).
+    def refused(self, *options):
+        """stderr of main(--work WORK --reuse OPTIONS), which must refuse them (argparse's exit 2)."""
         err = io.StringIO()
         with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:
-            run_hard_conditions.main(['--work', self.work, '--reuse', '--seeds', '1-100000000'])
+            run_hard_conditions.main(['--work', self.work, '--reuse'] + list(options))
         self.assertEqual(raised.exception.code, 2)
-        self.assertIn("(at most 1000 seeds)", err.getvalue())
+        return err.getvalue()
+
+    def test_a_seed_range_past_the_bound_is_refused(self):
+        # 1-100000000 built the list and ran out of memory (a traceback).
+        self.assertIn("(at most 1000 seeds)", self.refused('--seeds', '1-100000000'))
 
     def test_reuse_takes_only_a_route_of_the_teach_frames_asked_for(self):
         # --reuse --teach-frames 300 scored this 40-frame route without a word. It is rendered anew then;
@@ -256,19 +260,11 @@ class SetReachesTheRunnerTest(unittest.TestCase):
             run_hard_conditions.subprocess.run = real_run
 
     def test_an_output_json_in_a_missing_folder_is_refused_before_the_runs(self):
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:
-            run_hard_conditions.main(['--work', self.work, '--reuse', '--output-json',
-                                      os.path.join(self.work, 'nodir', 'x.json')])
-        self.assertEqual(raised.exception.code, 2)
-        self.assertIn('its folder does not exist', err.getvalue())
+        self.assertIn('its folder does not exist',
+                      self.refused('--output-json', os.path.join(self.work, 'nodir', 'x.json')))
 
     def test_a_set_without_a_value_is_refused(self):
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:
-            run_hard_conditions.main(['--work', self.work, '--reuse', '--set', 'min_texture_ratio'])
-        self.assertEqual(raised.exception.code, 2)
-        self.assertIn("--set takes NAME=VALUE, got 'min_texture_ratio'", err.getvalue())
+        self.assertIn("--set takes NAME=VALUE, got 'min_texture_ratio'", self.refused('--set', 'min_texture_ratio'))
 
 
 if __name__ == '__main__':
