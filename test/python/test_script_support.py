@@ -1,0 +1,262 @@
+"""along_route_localization.script_support (src/along_route_localization): what the scripts share, each function
+on cases worked out by hand."""
+
+import os
+import stat
+import sys
+import tempfile
+import unittest
+
+REPOSITORY = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
+sys.path.append(os.path.join(REPOSITORY, "src"))  # without a sourced workspace: the checkout's package
+from along_route_localization import script_support  # noqa: E402
+
+
+class SeasonTest(unittest.TestCase):
+    def test_each_season_gives_the_other(self):
+        self.assertEqual(script_support.other_season("summer"), "winter")
+        self.assertEqual(script_support.other_season("winter"), "summer")
+
+    def test_anything_else_is_refused_not_taken_for_winter(self):
+        # run_evaluation's copy gave 'summer' for every word but 'summer'
+        for word in ("autumn", "Summer", "", "winter "):
+            with self.assertRaises(ValueError, msg=repr(word)):
+                script_support.other_season(word)
+
+    def test_the_nordland_frames_lie_beside_the_scripts_repository(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            tmp = os.path.realpath(tmp)
+            script = os.path.join(tmp, "repo", "scripts", "run_evaluation")
+            os.makedirs(os.path.dirname(script))
+            open(script, "w").close()
+            link = os.path.join(tmp, "elsewhere")
+            os.makedirs(link)
+            os.symlink(script, os.path.join(link, "run_evaluation"))
+            expected = os.path.join(tmp, "shared", "data", "nordland")
+            self.assertEqual(script_support.nordland_data_dir(script), expected)
+            # through a link to the script: beside the repository that holds it, not beside the link
+            self.assertEqual(script_support.nordland_data_dir(os.path.join(link, "run_evaluation")), expected)
+
+
+class InsideFolderTest(unittest.TestCase):
+    def setUp(self):
+        self.folder = tempfile.TemporaryDirectory()
+        self.tmp = os.path.realpath(self.folder.name)
+        self.data = os.path.join(self.tmp, "data")
+        os.makedirs(os.path.join(self.data, "summer"))
+
+    def tearDown(self):
+        self.folder.cleanup()
+
+    def test_the_folder_itself_and_anything_under_it(self):
+        inside = script_support.inside_folder
+        self.assertTrue(inside(self.data, self.data))
+        self.assertTrue(inside(self.data + os.sep, self.data))
+        self.assertTrue(inside(self.data, self.data + os.sep))
+        self.assertTrue(inside(os.path.join(self.data, "summer"), self.data))
+        self.assertTrue(inside(os.path.join(self.data, "not", "made", "yet"), self.data))
+
+    def test_a_sibling_whose_name_starts_the_same_is_outside(self):
+        self.assertFalse(script_support.inside_folder(os.path.join(self.tmp, "data2"), self.data))
+        self.assertFalse(script_support.inside_folder(os.path.join(self.tmp, "dat"), self.data))
+        self.assertFalse(script_support.inside_folder(self.tmp, self.data))  # the parent
+
+    def test_dot_dot_is_resolved(self):
+        self.assertFalse(script_support.inside_folder(os.path.join(self.data, "summer", "..", "..", "out"), self.data))
+        self.assertTrue(script_support.inside_folder(os.path.join(self.tmp, "x", "..", "data", "out"), self.data))
+
+    def test_relative_paths_are_taken_from_the_working_folder(self):
+        before = os.getcwd()
+        os.chdir(self.data)
+        try:
+            self.assertTrue(script_support.inside_folder("out", self.data))
+            self.assertTrue(script_support.inside_folder(".", self.data))
+            self.assertTrue(script_support.inside_folder(os.path.join(self.tmp, "data", "out"), "."))
+            self.assertFalse(script_support.inside_folder(os.path.join("..", "out"), self.data))
+            self.assertFalse(script_support.inside_folder(os.path.join("..", "out"), "."))
+        finally:
+            os.chdir(before)
+
+    def test_symbolic_links_are_followed_either_way(self):
+        into = os.path.join(self.tmp, "link_into_data")
+        os.symlink(self.data, into)
+        # a path through a link that leads inside is inside
+        self.assertTrue(script_support.inside_folder(os.path.join(into, "out"), self.data))
+        # the folder given through a link: the same folder
+        self.assertTrue(script_support.inside_folder(os.path.join(self.data, "out"), into))
+        # a link inside the folder that leads out of it: where it leads counts
+        out = os.path.join(self.tmp, "out")
+        os.makedirs(out)
+        os.symlink(out, os.path.join(self.data, "link_out"))
+        self.assertFalse(script_support.inside_folder(os.path.join(self.data, "link_out", "x"), self.data))
+
+    def test_everything_is_inside_the_root(self):
+        self.assertTrue(script_support.inside_folder(self.data, os.sep))
+
+
+class TopicNameTest(unittest.TestCase):
+    def test_names_a_bag_can_hold(self):
+        for topic in ("/camera/image_raw", "camera", "/a1/b_2", "a"):
+            self.assertIsNone(script_support.topic_name_problem(topic), topic)
+
+    def test_other_names_are_said_why(self):
+        for topic in ("1camera", "/camera//image", "/camera/", "camera image", "", "/", "cam-era", "/~a"):
+            problem = script_support.topic_name_problem(topic)
+            self.assertIsNotNone(problem, topic)
+            self.assertIn("topic '%s' is not a ROS topic name" % topic, problem)
+
+
+class LoadScriptTest(unittest.TestCase):
+    def test_the_script_beside_the_caller_is_loaded_through_links(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            scripts = os.path.join(tmp, "scripts")
+            os.makedirs(scripts)
+            with open(os.path.join(scripts, "helper"), "w") as f:
+                f.write("#!/usr/bin/env python3\nVALUE = 41 + 1\n")
+            caller = os.path.join(scripts, "caller")
+            open(caller, "w").close()
+            elsewhere = os.path.join(tmp, "bin")
+            os.makedirs(elsewhere)
+            os.symlink(caller, os.path.join(elsewhere, "caller"))  # no helper beside the link
+            for beside in (caller, os.path.join(elsewhere, "caller")):
+                module = script_support.load_script("helper", beside)
+                self.assertEqual(module.VALUE, 42)
+                self.assertEqual(module.__name__, "helper")
+            with self.assertRaises(FileNotFoundError):
+                script_support.load_script("missing", caller)
+
+    def test_each_load_is_a_module_of_its_own(self):
+        # loaded, not imported: nothing is left in sys.modules, and a second load starts afresh
+        with tempfile.TemporaryDirectory() as tmp:
+            with open(os.path.join(tmp, "counter_script"), "w") as f:
+                f.write("COUNT = [0]\n")
+            first = script_support.load_script("counter_script", os.path.join(tmp, "caller"))
+            first.COUNT[0] += 1
+            second = script_support.load_script("counter_script", os.path.join(tmp, "caller"))
+            self.assertEqual(second.COUNT, [0])
+            self.assertNotIn("counter_script", sys.modules)
+
+
+class CandidatesTest(unittest.TestCase):
+    def test_no_lines_are_the_defaults_alone(self):
+        self.assertEqual(script_support.parse_candidates(""), [("defaults", [])])
+        self.assertEqual(script_support.parse_candidates("# only a comment\n\n   \n"), [("defaults", [])])
+
+    def test_comments_after_a_candidate_and_spaces_are_dropped(self):
+        self.assertEqual(script_support.parse_candidates("  steep :  max_step=3   # steeper\nnone:\n"),
+                         [("defaults", []), ("steep", ["max_step=3"]), ("none", [])])
+
+    def test_a_defaults_line_without_settings_is_the_defaults_once(self):
+        self.assertEqual(script_support.parse_candidates("defaults:\nsteep: max_step=3\ndefaults:  # again\n"),
+                         [("defaults", []), ("steep", ["max_step=3"])])
+
+    def test_defaults_with_settings_is_a_name_used_twice(self):
+        with self.assertRaises(ValueError) as caught:
+            script_support.parse_candidates("defaults: max_step=3\n")
+        self.assertEqual(str(caught.exception), "candidates line 1: the name 'defaults' is used twice")
+
+    def test_malformed_lines_are_named_by_their_number_in_the_file(self):
+        for text, message in (("# a\n\nsteep max_step=3\n", "candidates line 3: expected 'name: name=value ...', "
+                                                              "got 'steep max_step=3'"),
+                              (": max_step=3\n", "candidates line 1: expected 'name: name=value ...', got ': max_step=3'"),
+                              ("two words: max_step=3\n", "candidates line 1: expected 'name: name=value ...', "
+                                                          "got 'two words: max_step=3'"),
+                              ("a: max_step=3 =4\n", "candidates line 1: '=4' is not name=value"),
+                              ("a: max_step\n", "candidates line 1: 'max_step' is not name=value"),
+                              ("a: x=1\n\na: y=2\n", "candidates line 3: the name 'a' is used twice")):
+            with self.assertRaises(ValueError, msg=text) as caught:
+                script_support.parse_candidates(text)
+            self.assertEqual(str(caught.exception), message)
+
+    def test_a_value_may_hold_colons_and_equals_signs(self):
+        # only the first ':' ends the name, only the first '=' the parameter's name
+        self.assertEqual(script_support.parse_candidates("a: path=x:y b=c=d\n"), [("defaults", []),
+                                                                                ("a", ["path=x:y", "b=c=d"])])
+
+    def test_every_candidate_runs_with_the_calibration_off_last(self):
+        self.assertEqual(script_support.set_arguments(["max_step=3", "filter_window=5"]),
+                         ["--set", "max_step=3", "--set", "filter_window=5", "--set", "calibration_slope=0"])
+        self.assertEqual(script_support.set_arguments([]), ["--set", "calibration_slope=0"])
+
+
+class FakeLocalizerTest(unittest.TestCase):
+    """run and check_candidates with a stand-in for localize_offline --check-params that refuses max_stpe."""
+
+    def setUp(self):
+        self.folder = tempfile.TemporaryDirectory()
+        self.calls = os.path.join(self.folder.name, "calls")
+        self.binary = os.path.join(self.folder.name, "localize_offline")
+        with open(self.binary, "w") as f:
+            f.write('#!/bin/sh\necho "$*" >> "%s"\necho "checked $*"\n'
+                    'case "$*" in *max_stpe=*) echo "unknown parameter \'max_stpe\'" >&2; exit 2;; esac\n'
+                    'exit 0\n' % self.calls)
+        os.chmod(self.binary, os.stat(self.binary).st_mode | stat.S_IXUSR)
+
+    def tearDown(self):
+        self.folder.cleanup()
+
+    def calls_made(self):
+        with open(self.calls) as f:
+            return f.read().splitlines()
+
+    def test_run_gives_the_output_and_logs_the_command(self):
+        log = os.path.join(self.folder.name, "run.log")
+        seconds, out, err = script_support.run([self.binary, "--check-params"], log)
+        self.assertGreaterEqual(seconds, 0.0)
+        self.assertEqual((out, err), ("checked --check-params\n", ""))
+        with open(log) as f:
+            self.assertEqual(f.read(), "$ %s --check-params\nchecked --check-params\n" % self.binary)
+
+    def test_a_failed_command_is_an_evaluation_error_with_its_exit_and_words(self):
+        with self.assertRaises(script_support.EvaluationError) as caught:
+            script_support.run([self.binary, "--set", "max_stpe=3"])
+        self.assertEqual(str(caught.exception), "command failed (exit 2): %s --set max_stpe=3\n"
+                                                "unknown parameter 'max_stpe'" % self.binary)
+
+    def test_every_candidate_is_checked_with_the_calibration_off(self):
+        script_support.check_candidates(self.binary, [("defaults", []), ("steep", ["max_step=3"])])
+        self.assertEqual(self.calls_made(), ["--check-params --method dtw --set calibration_slope=0",
+                                             "--check-params --method dtw --set max_step=3 --set calibration_slope=0"])
+
+    def test_the_first_refused_candidate_is_named_and_the_rest_not_run(self):
+        candidates = script_support.parse_candidates("steep: max_step=3\ntypo: max_stpe=3\nlater: max_step=2\n")
+        with self.assertRaises(script_support.EvaluationError) as caught:
+            script_support.check_candidates(self.binary, candidates)
+        self.assertTrue(str(caught.exception).startswith("candidate typo: command failed (exit 2): "),
+                        str(caught.exception))
+        self.assertIn("unknown parameter 'max_stpe'", str(caught.exception))
+        self.assertEqual(len(self.calls_made()), 3)  # defaults, steep, typo; not later
+
+    def test_an_explicit_localize_offline_must_be_an_executable_file(self):
+        self.assertEqual(script_support.find_localize_offline(self.binary), self.binary)
+        for path in (self.calls, os.path.join(self.folder.name, "none"), self.folder.name):
+            if path == self.calls:
+                open(path, "w").close()
+            with self.assertRaises(script_support.EvaluationError) as caught:
+                script_support.find_localize_offline(path)
+            self.assertEqual(str(caught.exception), "--localize-offline %s is not an executable file" % path)
+
+
+class DataAndOutputTest(unittest.TestCase):
+    def test_the_data_needs_both_seasons(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            os.makedirs(os.path.join(tmp, "summer"))
+            with self.assertRaises(script_support.EvaluationError) as caught:
+                script_support.check_data(tmp)
+            self.assertIn("(missing: winter)", str(caught.exception))
+            os.makedirs(os.path.join(tmp, "winter"))
+            script_support.check_data(tmp)
+
+    def test_an_output_inside_the_data_is_refused_and_one_beside_it_taken(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            data = os.path.join(tmp, "nordland")
+            os.makedirs(data)
+            with self.assertRaises(script_support.EvaluationError) as caught:
+                script_support.check_output(os.path.join(data, "out"), data)
+            self.assertEqual(str(caught.exception), "--output %s is inside the data folder %s; write it elsewhere"
+                             % (os.path.join(data, "out"), data))
+            script_support.check_output(os.path.join(tmp, "nordland_out"), data)
+
+
+if __name__ == "__main__":
+    unittest.main()
