@@ -8,8 +8,11 @@ import tempfile
 import unittest
 
 SCRIPTS_DIR = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..', 'scripts'))
-SCRIPTS = sorted(name for name in os.listdir(SCRIPTS_DIR) if not name.startswith('.'))
+# (files only: loading a script as a module may leave a __pycache__ folder beside them)
+SCRIPTS = sorted(name for name in os.listdir(SCRIPTS_DIR)
+                 if not name.startswith('.') and os.path.isfile(os.path.join(SCRIPTS_DIR, name)))
 BASH_SCRIPTS = [name for name in SCRIPTS if open(os.path.join(SCRIPTS_DIR, name)).readline().rstrip().endswith('bash')]
+PYTHON_SCRIPTS = [name for name in SCRIPTS if name not in BASH_SCRIPTS]
 
 
 def run(name, *args, cwd):
@@ -36,6 +39,18 @@ class ScriptHelpTest(unittest.TestCase):
                     self.assertIn('usage', done.stdout.lower())
                     self.assertNotIn('mkdir', done.stdout + done.stderr)  # run_demo ran `mkdir --help`
                     self.assertEqual(os.listdir(folder), [], 'created in the working folder / HOME')
+
+    def test_the_python_scripts_run_from_the_checkout_without_a_sourced_workspace(self):
+        # They import the package's Python module (src/along_route_localization): from the sourced workspace,
+        # else from the checkout they are in. Here with no workspace: no ROS variables, no PYTHONPATH.
+        self.assertIn('run_evaluation', PYTHON_SCRIPTS)
+        for name in PYTHON_SCRIPTS:
+            with self.subTest(script=name), tempfile.TemporaryDirectory() as folder:
+                done = subprocess.run(['/usr/bin/python3', os.path.join(SCRIPTS_DIR, name), '--help'], cwd=folder,
+                                      env={'PATH': '/usr/bin:/bin', 'HOME': folder, 'PYTHONDONTWRITEBYTECODE': '1'},
+                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True, timeout=60)
+                self.assertEqual(done.returncode, 0, done.stderr)
+                self.assertIn('usage', done.stdout.lower())
 
     def test_an_unknown_option_is_refused_not_taken_for_a_folder(self):
         for name in BASH_SCRIPTS:
