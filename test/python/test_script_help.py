@@ -52,6 +52,14 @@ class ScriptHelpTest(unittest.TestCase):
                 self.assertEqual(done.returncode, 0, done.stderr)
                 self.assertIn('usage', done.stdout.lower())
 
+    def test_every_python_script_is_installed(self):
+        # The scripts run and load each other from their own folder: run_evaluation runs cross_validate,
+        # which was not installed.
+        import re
+        with open(os.path.join(SCRIPTS_DIR, '..', 'CMakeLists.txt')) as f:
+            listed = re.search(r'catkin_install_python\(PROGRAMS(.*?)DESTINATION', f.read(), re.S).group(1).split()
+        self.assertEqual(sorted(os.path.basename(path) for path in listed), PYTHON_SCRIPTS)
+
     def test_an_unknown_option_is_refused_not_taken_for_a_folder(self):
         for name in BASH_SCRIPTS:
             with self.subTest(script=name), tempfile.TemporaryDirectory() as folder:
