@@ -128,36 +128,69 @@ std::string imageTopicOf(rosbag::Bag& bag, const std::string& path, const std::s
   return *topics.begin();
 }
 
-/// Preprocessed frames of an image topic, with their header stamps in ns.
-std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& topic, const PreprocessingParams& params,
-                                   std::vector<int64_t>* stamps_ns, const LoadProgress& progress)
+/// The error for a file rosbag cannot open: rosbag's own words (`e`, e.g. "wanted 4 bytes, read 0 bytes") do
+/// not say what is wrong with the file.
+std::runtime_error unreadableBag(const std::string& path, const std::exception& e)
 {
-  rosbag::Bag bag;
+  switch (bagFileHead(path))
+  {
+    case BagFileHead::kEmpty:
+      return std::runtime_error("'" + path + "' is empty (0 bytes): neither a bag nor a map file");
+    case BagFileHead::kNotABag:
+      return std::runtime_error("'" + path + "' is not a bag or map file (nor a folder of images)");
+    case BagFileHead::kOtherVersion:
+      return std::runtime_error("'" + path + "' is a rosbag of another format version than 2.0");
+    case BagFileHead::kCutInHeader:
+      return std::runtime_error("'" + path + "' is cut short inside the bag header (" +
+                                std::to_string(fs::file_size(path)) + " bytes): nothing to recover");
+    case BagFileHead::kRosbag2:
+      break;
+  }
+  return std::runtime_error("bag '" + path + "' cannot be read, probably cut short (a recording that was "
+                            "interrupted?): `rosbag reindex " + path + "` may recover it. rosbag says: " + e.what());
+}
+
+/// A file given for frames, opened once: a recorder map file (map_io.h) is read as the map and returned, `bag`
+/// closed; any other bag is left open in `bag` for preprocessBag, and null returned. Throws, saying what the
+/// file is, when rosbag cannot open it and it is no map file either.
+std::shared_ptr<RouteMap> openMapOrImageBag(const std::string& path, rosbag::Bag* bag)
+{
   try
   {
-    bag.open(path, rosbag::bagmode::Read);
+    bag->open(path, rosbag::bagmode::Read);
   }
   catch (const std::exception& e)
   {
-    // rosbag's own words ("wanted 4 bytes, read 0 bytes") do not say what is wrong with the file.
-    switch (bagFileHead(path))
+    // rosbag needs the index at the end of the file; the map reader walks the records and also reads a
+    // map whose index was never written (copied or written while the disk filled up).
+    if (bagFileHead(path) == BagFileHead::kRosbag2)
     {
-      case BagFileHead::kEmpty:
-        throw std::runtime_error("'" + path + "' is empty (0 bytes): neither a bag nor a map file");
-      case BagFileHead::kNotABag:
-        throw std::runtime_error("'" + path + "' is not a bag or map file (nor a folder of images)");
-      case BagFileHead::kOtherVersion:
-        throw std::runtime_error("'" + path + "' is a rosbag of another format version than 2.0");
-      case BagFileHead::kCutInHeader:
-        throw std::runtime_error("'" + path + "' is cut short inside the bag header (" +
-                                 std::to_string(fs::file_size(path)) +
-                                 " bytes): nothing to recover");
-      case BagFileHead::kRosbag2:
-        break;
+      try
+      {
+        return std::make_shared<RouteMap>(readMap(path));
+      }
+      catch (const MapError&)
+      {
+      }
     }
-    throw std::runtime_error("bag '" + path + "' cannot be read, probably cut short (a recording that was "
-                             "interrupted?): `rosbag reindex " + path + "` may recover it. rosbag says: " + e.what());
+    throw unreadableBag(path, e);
   }
+  // A map is known by any of its own topics (relative names, which no recorded topic has): one that lost
+  // its parameters (a damaged index, a `rosbag filter`) is refused by readMap, not preprocessed again as
+  // an image bag.
+  rosbag::View view(*bag, rosbag::TopicQuery(std::vector<std::string>{ kMapPreprocessingTopic, kMapKeyframesTopic,
+                                                                       kMapInfoTopic }));
+  if (view.size() == 0)
+    return nullptr;
+  bag->close();
+  return std::make_shared<RouteMap>(readMap(path));
+}
+
+/// Preprocessed frames of an image topic of `bag` (open, read from `path`), with their header stamps in ns.
+std::vector<cv::Mat> preprocessBag(rosbag::Bag& bag, const std::string& path, const std::string& topic,
+                                   const PreprocessingParams& params, std::vector<int64_t>* stamps_ns,
+                                   const LoadProgress& progress)
+{
   const std::string image_topic = imageTopicOf(bag, path, topic);
   rosbag::View view(bag, rosbag::TopicQuery(image_topic));
   if (view.size() == 0)
@@ -229,41 +262,6 @@ std::vector<cv::Mat> preprocessBag(const std::string& path, const std::string& t
   return frames;
 }
 
-/// A recorder map file is a bag with the map's own topics (map_io.h). The map when `path` is one, else null.
-std::shared_ptr<RouteMap> readIfMapFile(const std::string& path)
-{
-  rosbag::Bag bag;
-  try
-  {
-    bag.open(path, rosbag::bagmode::Read);
-  }
-  catch (const std::exception&)
-  {
-    // rosbag needs the index at the end of the file; the map reader walks the records and also reads a
-    // map whose index was never written (copied or written while the disk filled up). Anything else is
-    // left to the image reader to report.
-    if (bagFileHead(path) != BagFileHead::kRosbag2)
-      return nullptr;
-    try
-    {
-      return std::make_shared<RouteMap>(readMap(path));
-    }
-    catch (const MapError&)
-    {
-      return nullptr;
-    }
-  }
-  // A map is known by any of its own topics (relative names, which no recorded topic has): one that lost
-  // its parameters (a damaged index, a `rosbag filter`) is refused by readMap, not preprocessed again as
-  // an image bag.
-  rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{ kMapPreprocessingTopic, kMapKeyframesTopic,
-                                                                      kMapInfoTopic }));
-  if (view.size() == 0)
-    return nullptr;
-  bag.close();
-  return std::make_shared<RouteMap>(readMap(path));
-}
-
 bool isDirectory(const std::string& path)
 {
   return fs::is_directory(fs::path(path));
@@ -304,7 +302,8 @@ std::vector<cv::Mat> loadPreprocessedFrames(const std::string& path, const std::
       stamps_ns->assign(files.size(), 0);
     return preprocessFiles(files, params, progress);
   }
-  if (const std::shared_ptr<RouteMap> map = readIfMapFile(path))
+  rosbag::Bag bag;
+  if (const std::shared_ptr<RouteMap> map = openMapOrImageBag(path, &bag))
   {
     // A map file's keyframes are preprocessed already: used as they are, when made as these frames must be.
     if (!(map->params() == params))
@@ -325,15 +324,16 @@ std::vector<cv::Mat> loadPreprocessedFrames(const std::string& path, const std::
       throw std::runtime_error("the map file '" + path + "' holds no keyframes");
     return frames;
   }
-  return preprocessBag(path, topic, params, stamps_ns, progress);
+  return preprocessBag(bag, path, topic, params, stamps_ns, progress);
 }
 
 std::shared_ptr<RouteMap> loadMapFromPath(const std::string& path, const std::string& topic, PreprocessingParams* params,
                                           const LoadProgress& progress)
 {
   requireExists(path);
+  rosbag::Bag bag;  // an image bag: opened once, to tell it from a map file and then to read its images
   if (!isDirectory(path))
-    if (std::shared_ptr<RouteMap> map = readIfMapFile(path))
+    if (std::shared_ptr<RouteMap> map = openMapOrImageBag(path, &bag))
     {
       *params = map->params();
       return map;
@@ -352,7 +352,7 @@ std::shared_ptr<RouteMap> loadMapFromPath(const std::string& path, const std::st
   }
   else
   {
-    frames = preprocessBag(path, topic, *params, &stamps, progress);
+    frames = preprocessBag(bag, path, topic, *params, &stamps, progress);
     // Every image becomes a keyframe in bag order: a bag whose stamps go back (a drive recorded twice, a
     // loop) holds the route more than once, and each place then has a look-alike in the map.
     size_t back = 0, first_back = 0;

@@ -423,6 +423,30 @@ class LocalizeOfflineTest(unittest.TestCase):
                          "the map file '%s' was made with other preprocessing parameters" % map_file,
                          'normalization_strength: 0.1 vs 0.2')
 
+    def test_an_image_bag_is_opened_once(self):
+        # As the map or as the query, a bag was opened twice: once to tell whether it is a map file, then again
+        # to read its images. Counted with strace: the files opened, and how often.
+        import re
+        strace = shutil.which('strace')
+        if strace is None:
+            self.skipTest('needs strace')
+        map_bag = self.write_bag('once_map.bag', self.frames(0, 40))
+        query_bag = self.write_bag('once_query.bag', self.frames(0, 40))
+        trace = os.path.join(self.tmp, 'once.trace')
+        output = os.path.join(self.tmp, 'once.csv')
+        result = subprocess.run([strace, '-f', '-e', 'trace=open,openat', '-o', trace, RUNNER, '--quiet', '--map',
+                                 map_bag, '--query', query_bag, '--output', output], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, universal_newlines=True, timeout=120)
+        if result.returncode != 0 and 'ptrace' in result.stderr:
+            self.skipTest('strace cannot trace here: %s' % result.stderr.strip()[:200])
+        self.assertEqual(result.returncode, 0, result.stderr)
+        with open(output) as f:
+            self.assertEqual(len(list(csv.DictReader(f))), 40)
+        with open(trace) as f:
+            opened = f.read()
+        for bag in (map_bag, query_bag):
+            self.assertEqual(len(re.findall(r'open(?:at)?\(.*"%s", .*\) = \d+' % re.escape(bag), opened)), 1, bag)
+
     def test_a_map_file_that_lost_its_parameters_is_refused_not_read_as_images(self):
         # A map file without its 'preprocessing' topic (a `rosbag filter`, a damaged index) was read as an
         # image bag: its keyframes preprocessed again, the results silently different.
