@@ -15,6 +15,7 @@
 #include "along_route_localization/image_difference.h"
 #include "along_route_localization/online_dtw.h"
 #include "along_route_localization/route_map.h"
+#include "along_route_localization/route_posterior.h"
 #include "along_route_localization/seqslam.h"
 #include "along_route_localization/track_status.h"
 
@@ -149,12 +150,20 @@ struct LocalizerParams
   /// confidence weighs the margin by the distinct views among the rows / K, Localizer::process).
   float confidence_scale = 0.5f;
   /// Step 5: the published confidence is the probability that the answer is within one keyframe of the
-  /// true one, sigma(calibration_offset + calibration_slope * c), c being the margin confidence above
+  /// true one, sigma(calibration_offset + calibration_slope * c), c being the route posterior's mass within
+  /// one keyframe of the answer (posterior_confidence, below) or the margin confidence above
   /// (calibratedConfidence; a logistic fit, Platt scaling). scripts/cross_validate fits both on real
   /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
   /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. Both dimensionless.
-  float calibration_offset = 0.651f;
-  float calibration_slope = 8.136f;
+  float calibration_offset = 0.036f;
+  float calibration_slope = 5.180f;
+  /// Step 5, the confidence a probability: with posterior_confidence (the default) c above is not the DTW's
+  /// margin but the mass within one keyframe of the answer of a forward filter over the route
+  /// (RoutePosterior, route_posterior.h), fed with each frame's energy-normalized costs over the keyframes
+  /// it was compared with. The margin confidence still drives the status (confidence_threshold, the loss
+  /// detection, the confirmations). posterior.max_step is the DTW's (set by the Localizer).
+  bool posterior_confidence = true;
+  PosteriorParams posterior;
   /// Lost (global search again) when lost_after_frames of the last lost_window_frames informative
   /// frames were low-confidence (LossDetector). Featureless frames do not count, nor do copies of the
   /// last view (the camera standing still): they bring no evidence of another place, and a long stop at
@@ -437,6 +446,8 @@ private:
   /// track by more than contradiction_margin_share of chanceMargin; lost: the global search's guess or,
   /// dead_reckon_while_lost, the dead-reckoned keyframe), confidence (0 while lost or contradicted), status,
   /// homing.
+  /// Step 5: the posterior moves on one frame and weighs its evidence (posterior_row_).
+  void updatePosterior();
   LocalizationResult publish(const Frame& frame, int keyframe, double confidence);
 
   /// The query shows the view of the last one that entered the ring buffer (stationary_ratio): the
@@ -592,6 +603,18 @@ private:
   // per-frame scratch, sized once per map / parameter change
   std::vector<float> raw_costs_, shifts_;              // indexed by keyframe: computeRow's scratch
   std::vector<uint8_t> mask_;                          // informative entries of the newest band
+  RoutePosterior posterior_;                           // the published confidence (posterior_confidence)
+  /// The frame's costs for the posterior: the widest row computed for it (appendRow, replayRecentQueries).
+  struct PosteriorRow
+  {
+    std::vector<float> costs;
+    std::vector<uint8_t> usable;
+    int first = 0, width = 0;
+    bool has_evidence = false;          ///< an informative query
+    bool newest_is_this_frame = false;  ///< the newest recent query is this frame's (replays reach it)
+    void keep(const float* row_costs, const uint8_t* row_usable, int row_first, int row_width);
+  };
+  PosteriorRow posterior_row_;
   cv::Mat query_copy_;                                 // only for non-continuous input
 
   State state_ = State::kInitializing;

@@ -199,7 +199,9 @@ void Localizer::start()
   recent_checking_ = recent_contradicted_ = false;
   recent_unanswered_ = recent_pending_ = check_pending_ = 0;
   recent_confirmation_.clear();
-  if (params_.start_keyframe < 0 || params_.method != SequenceMethod::kOnlineDtw)
+  const bool known_start = params_.start_keyframe >= 0 && params_.method == SequenceMethod::kOnlineDtw;
+  posterior_.reset(static_cast<int>(map_->size()), known_start ? params_.start_keyframe : -1);
+  if (!known_start)
     return;
   state_ = State::kTracking;
   last_match_ = start_match_ = params_.start_keyframe;
@@ -225,6 +227,9 @@ void Localizer::setParams(const LocalizerParams& params)
                                    params.homing_max_vertical_shift_px != params_.homing_max_vertical_shift_px;
   params_ = params;
   dtw_.setParams(params_.dtw);
+  PosteriorParams posterior = params_.posterior;
+  posterior.max_step = params_.dtw.max_step;
+  posterior_.setParams(posterior);
   confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
   check_confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
   recent_confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
@@ -629,6 +634,7 @@ void Localizer::skipFrames(int count)
     run_position_ = reckon_position_ = -1.0;
     recent_count_ = recent_next_ = 0;
     lost_frame_ -= count;  // lost (now or before): the robot may have driven on through the missed frames
+    posterior_.reset(static_cast<int>(map_->size()), -1);  // anywhere it could drive: the whole route
     return;
   }
   // Each missed frame is a row without evidence, as a featureless frame is: the DTW paths go on through
@@ -652,6 +658,7 @@ LocalizationResult Localizer::step(const uint8_t* query, float energy)
     last_path_.clear();
     if (state_ == State::kLost && lost_position_ >= 0.0)  // the dead reckoning goes on through it
       lost_position_ = reckonedAhead(lost_position_);
+    updatePosterior();
     LocalizationResult result;
     result.query_informative = false;
     return result;
@@ -691,6 +698,7 @@ LocalizationResult Localizer::step(const uint8_t* query, float energy)
     trackStep(&frame, &match, confident);
   if (state_ == State::kTracking || state_ == State::kCoasting)
     followTrack(frame, match.keyframe);
+  updatePosterior();
   // The frame that moved the track to a confirmed place: that place's confidence, from the check that
   // confirmed it, not the old track's.
   return publish(frame, match.keyframe,
@@ -704,6 +712,8 @@ Localizer::Frame Localizer::beginFrame(const uint8_t* query, float energy)
   const int n = static_cast<int>(map_->size());
   Frame frame;
   frame.query = query;
+  posterior_row_.has_evidence = posterior_row_.newest_is_this_frame = false;
+  posterior_row_.width = 0;
   frame.energy = query ? energy : 0.0f;
   frame.informative = query && textured(frame.energy);
   // The query repeats the previous row's view (the camera stood still): flagged for column centering.
@@ -769,14 +779,19 @@ void Localizer::appendRow(const Frame& frame)
     // the whole map. (At most K - 1 of them: the window holds K rows with this frame's.)
     replayRecentQueries(std::min(recent_count_, params_.ring_buffer_rows - 1), &ring_);
   }
+  const int first = frame.checking_start ? 0 : frame.first, width = frame.checking_start ? n : frame.width;
+  computeRow(query, frame.energy, frame.informative, frame.repeated, frame.checking_start || frame.global, first,
+             width);
   if (frame.checking_start)
   {
-    computeRow(query, frame.energy, frame.informative, frame.repeated, true, 0, n);
     ++rows_since_start_;
     views_since_start_ += query && frame.informative && !frame.repeated ? 1 : 0;
   }
-  else
-    computeRow(query, frame.energy, frame.informative, frame.repeated, frame.global, frame.first, frame.width);
+  // This frame's costs (energy-normalized) over the keyframes it was compared with, for step 5's posterior
+  // (updatePosterior); a featureless or missed frame brings no evidence.
+  posterior_row_.has_evidence = query && frame.informative;
+  if (posterior_row_.has_evidence)
+    posterior_row_.keep(raw_costs_.data() + first, mask_.data(), first, width);
   if (!recent_queries_.empty())
   {
     RecentQuery& recent = recent_queries_[recent_next_];
@@ -787,6 +802,7 @@ void Localizer::appendRow(const Frame& frame)
     recent.repeated = frame.repeated;
     recent_next_ = (recent_next_ + 1) % static_cast<int>(recent_queries_.size());
     recent_count_ = std::min(recent_count_ + 1, static_cast<int>(recent_queries_.size()));
+    posterior_row_.newest_is_this_frame = true;
   }
   if (query)
     cv::Mat(map_->height(), map_->width(), CV_8UC1, const_cast<uint8_t*>(query)).copyTo(entered_query_);
@@ -1033,6 +1049,26 @@ void Localizer::followTrack(const Frame& frame, int keyframe)
   last_match_ = keyframe;
 }
 
+void Localizer::PosteriorRow::keep(const float* row_costs, const uint8_t* row_usable, int row_first, int row_width)
+{
+  costs.assign(row_costs, row_costs + row_width);
+  usable.assign(row_usable, row_usable + row_width);
+  first = row_first;
+  width = row_width;
+}
+
+void Localizer::updatePosterior()
+{
+  // Step 5's posterior: the motion model, then this frame's evidence over the widest row computed for it (the
+  // tracking band, or the whole map: a global search, a known start's check, a check of the newest frames).
+  if (!params_.posterior_confidence || params_.method != SequenceMethod::kOnlineDtw)
+    return;  // not published: not computed
+  posterior_.predict();
+  if (posterior_row_.has_evidence)
+    posterior_.observe(posterior_row_.costs.data(), posterior_row_.usable.data(), posterior_row_.first,
+                       posterior_row_.width);
+}
+
 LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double confidence)
 {
   LocalizationResult result;
@@ -1046,6 +1082,10 @@ LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double c
     result.keyframe = contradicting_place_;
   else
     result.keyframe = keyframe;
+  // The confidence a probability (posterior_confidence): the posterior's mass within one keyframe of the answer.
+  if (params_.posterior_confidence && params_.method == SequenceMethod::kOnlineDtw)
+    result.confidence = calibratedConfidence(posterior_.withinOne(result.keyframe), params_.calibration_offset,
+                                             params_.calibration_slope);
   // Lost: confidence 0 until the global search confirms a place (the frame that confirms it answers there);
   // the answer is the global search's guess, or (dead_reckon_while_lost) where the robot went at the
   // cruise speed since the loss.
@@ -1261,6 +1301,10 @@ void Localizer::replayRecentQueries(int count, CostRingBuffer* target)
   {
     const RecentQuery& recent = recent_queries_[(recent_next_ - recent_count_ + i + capacity) % capacity];
     computeRow(recent.image.data(), recent.energy, recent.informative, recent.repeated, true, 0, n, target);
+    // This frame over the whole map (a check of the newest frames): the posterior weighs all of it.
+    if (i == recent_count_ - 1 && posterior_row_.newest_is_this_frame && posterior_row_.has_evidence &&
+        posterior_row_.width < n)
+      posterior_row_.keep(raw_costs_.data(), mask_.data(), 0, n);
   }
 }
 

@@ -279,8 +279,24 @@ std::vector<ParameterSpec> makeTable()
                         "The published confidence is sigma(offset + slope * c), the probability of being within one "
                         "keyframe (fitted by cross_validate)", FIELD(localizer.calibration_offset)));
   t.push_back(numberRow("calibration_slope", loc, 0, 1000, "",
-                        "Slope of the confidence calibration (0: publish the margin confidence c itself)",
+                        "Slope of the confidence calibration (0: publish c itself)",
                         FIELD(localizer.calibration_slope)));
+  t.push_back(boolRow("posterior_confidence", loc,
+                      "c is the route posterior's mass within one keyframe of the answer (false: the DTW's margin "
+                      "confidence)",
+                      FIELD(localizer.posterior_confidence)));
+  t.push_back(numberRow("posterior_cost_scale", loc, 0.0001, 100, "cost",
+                        "Route posterior: a keyframe's likelihood is exp(-(cost - least cost) / this)",
+                        FIELD(localizer.posterior.cost_scale)));
+  t.push_back(numberRow("posterior_speed_change", loc, 0, 1, "per frame",
+                        "Route posterior: probability that the speed changes by half a keyframe per frame",
+                        FIELD(localizer.posterior.speed_change)));
+  t.push_back(numberRow("posterior_jump", loc, 0, 1, "per frame",
+                        "Route posterior: probability that the robot is anywhere on the route (carried elsewhere)",
+                        FIELD(localizer.posterior.jump)));
+  t.push_back(numberRow("posterior_start_doubt", loc, 0, 1, "",
+                        "Route posterior: share of the belief a known start leaves spread over the route",
+                        FIELD(localizer.posterior.start_doubt)));
   t.push_back(boolRow("loss_needs_contradiction", loc,
                       "When the loss detection fires, coast and lose the track only on evidence for another place",
                       FIELD(localizer.loss_needs_contradiction)));

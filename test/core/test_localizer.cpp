@@ -738,6 +738,7 @@ TEST(Localizer, ConfidenceWeighsTheMarginByTheRowsSeen)
   params.start_keyframe = -1;
   params.ring_buffer_rows = 20;
   params.calibration_slope = 0.0f;  // the margin confidence itself (calibratedConfidence: by hand below)
+  params.posterior_confidence = false;  // published: the margin confidence, which drives the status
   arl::Localizer localizer(map, params);
   arl::OnlineDtw dtw(params.dtw);
   int weighted_frames = 0;
@@ -1404,19 +1405,34 @@ TEST(Localizer, UnknownPlacesGetLostThenRelocalize)
     arl::LocalizerParams params;
     params.loss_needs_contradiction = needs_contradiction;
     params.calibration_slope = 0.0f;  // the margin confidence, compared with confidence_threshold
+    params.posterior_confidence = false;
     arl::Localizer localizer(map, params);
+    // The published confidence (posterior_confidence), fed the same frames: a robot that left the route
+    // into frames that match nothing looks, to the posterior, like one driving on through weak evidence
+    // (fog): it coasts, and its confidence falls as the speed's uncertainty spreads the belief.
+    arl::LocalizerParams published = params;
+    published.posterior_confidence = true;
+    arl::Localizer posterior(map, published);
     for (int i = 0; i <= 20; ++i)
+    {
       localizer.process(keyframeCopy(*map, i));
-    int lost = 0, confident = 0;
+      posterior.process(keyframeCopy(*map, i));
+    }
+    int lost = 0, confident = 0, posterior_confident = 0, posterior_confident_late = 0;
     for (int j = 0; j < 40; ++j)
     {
       const arl::LocalizationResult r = localizer.process(randomFrame(50000 + j));
       lost += r.status == LocalizationStatus::kLost ? 1 : 0;
       confident += r.confidence >= params.confidence_threshold ? 1 : 0;
+      const arl::LocalizationResult p = posterior.process(randomFrame(50000 + j));
+      posterior_confident += p.confidence >= params.confidence_threshold ? 1 : 0;
+      posterior_confident_late += j >= 20 && p.confidence >= params.confidence_threshold ? 1 : 0;
     }
-    std::printf("loss_needs_contradiction %d: of 40 unknown frames %d lost, %d confident\n", needs_contradiction,
-                lost, confident);
+    std::printf("loss_needs_contradiction %d: of 40 unknown frames %d lost, %d confident (the posterior: %d, %d of "
+                "the last 20)\n",
+                needs_contradiction, lost, confident, posterior_confident, posterior_confident_late);
     EXPECT_LE(confident, 10);  // measured 6 (every loss) and 8 (contrary evidence needed): a quarter at most
+    EXPECT_EQ(0, posterior_confident_late);  // measured 10 and 13 of the 40, none of the last 20
     if (needs_contradiction)  // (measured 2: a check's winner by chance, published lost, never confirmed)
       EXPECT_LE(lost, 4) << "frames that match nothing are no evidence of another place";
     else
@@ -1608,10 +1624,21 @@ TEST(Localizer, StandingStillDoesNotMakeTheTrackLost)
   }
   std::printf("standing at the station: %d of 60 frames tracking, lowest confidence %.3f\n", tracking,
               lowest_confidence);
-  const arl::LocalizerParams defaults;
-  EXPECT_LT(lowest_confidence, arl::calibratedConfidence(defaults.confidence_threshold, defaults.calibration_offset,
-                                                         defaults.calibration_slope));  // and says it is unsure
   EXPECT_EQ(60, tracking);
+  // Unsure of the place by the margin (the other station fits as well), sure by the posterior, rightly: the
+  // robot cannot have reached the other station without driving through 20 keyframes that do not match.
+  arl::LocalizerParams margin_params;
+  margin_params.posterior_confidence = false;
+  arl::Localizer margin(map, margin_params);
+  for (int i = 0; i < 30; ++i)
+    margin.process(keyframeCopy(*map, i));
+  double margin_lowest = 1.0;
+  for (int f = 0; f < 60; ++f)
+    margin_lowest = std::min(margin_lowest, margin.process(station.clone()).confidence);
+  const arl::LocalizerParams defaults;
+  EXPECT_LT(margin_lowest, arl::calibratedConfidence(defaults.confidence_threshold, defaults.calibration_offset,
+                                                     defaults.calibration_slope));
+  EXPECT_GT(lowest_confidence, 0.5);  // measured 0.962
   int right = 0;
   for (int i = 40; i < 60; ++i)
   {

@@ -581,7 +581,7 @@ class LocalizeOfflineTest(unittest.TestCase):
                       '        K: frames in the sequence window', result.stdout)
         self.assertIn('    normalization = divisive  (patch | divisive | none)\n', result.stdout)
         self.assertNotIn('skip_penalty', result.stdout)
-        self.assertIn('  and 41 advanced parameters, not shown', result.stdout)
+        self.assertIn('  and 46 advanced parameters, not shown', result.stdout)
         self.assertIn('localize_offline --help-advanced lists them', result.stdout)
 
         def listed(stdout):
