@@ -44,7 +44,7 @@ struct RouteFollowerParams
   double homing_time_constant_s = 0.3;  ///< first-order low-pass of the homing angle, s (0 = none)
   double speed_factor = 1.0;            ///< forward speed = taught speed x this (and the taught turn rate too)
   /// a localization below this counts as low confidence (the localizer publishes the probability of being
-  /// within one keyframe: 0.85 is a margin confidence of about 0.2, its loss detection's threshold)
+  /// within one keyframe: with its shipped calibration 0.85 is a posterior mass of about 0.33 there)
   double min_confidence = 0.85;
   int slow_after_frames = 3;            ///< consecutive low-confidence localizations before slowing
   int stop_after_frames = 8;            ///< consecutive low-confidence localizations before stopping
@@ -85,7 +85,7 @@ struct FollowerCommand
 /// after slow_after_frames low-confidence localizations in a row, 0 after stop_after_frames, while lost or
 /// initializing, at the end of the route, and when localizations stopped coming; slow_factor, never 0 for
 /// low confidence, until the first confident localization after start() or after the track began: the
-/// localizer's confidence is low while the camera stands still, so a stop there would never end, and its
+/// robot standing still shows the localizer no new view, so a stop there would never end, and its
 /// loss detection stops the robot if no confident answer comes), approached from the
 /// previous command at no more than max_linear_accel / max_angular_accel: a jump of the matched keyframe or
 /// a stop never makes a jump in the command. The taught turn rate is scaled like the speed so that the

@@ -54,12 +54,18 @@ public:
   /// over the route) or anywhere (start < 0). The window is the whole route.
   void reset(int keyframes, int start);
 
+  /// The window becomes the keyframes [first, first + width) (clipped to the route; nothing left: unchanged):
+  /// those a frame is compared with, whether or not it brings evidence. What leaves the window joins the even
+  /// spread elsewhere; what enters it takes the spread's share.
+  void moveTo(int first, int width);
+
   /// `frames` frames without evidence (missed, or featureless): the motion model only.
   void predict(int frames = 1);
 
-  /// One frame's evidence after its predict(): costs[j] for keyframe first + j, j < width; a keyframe with
-  /// usable[j] == 0 (featureless) takes the median likelihood of the usable ones, as do the positions
-  /// outside the window, which becomes [first, first + width). No usable keyframe: no evidence.
+  /// One frame's evidence after its predict(): costs[j] for keyframe first + j, j < width (entries off the
+  /// route are ignored); a keyframe with usable[j] == 0 (featureless) or a cost that is not finite takes the
+  /// median likelihood of the usable ones, as do the positions outside the window, which becomes the row's
+  /// keyframes (moveTo). No usable keyframe: no evidence, the window unchanged.
   void observe(const float* costs, const uint8_t* usable, int first, int width);
 
   /// The probability that the robot is at `keyframe` (its position and half of each neighbouring midpoint).
@@ -79,7 +85,6 @@ private:
   /// The mass of one position outside the window, all speeds together.
   double outsideDensity() const;
   double positionMass(int x) const;  ///< x: a position of the route (2 * keyframe for a keyframe)
-  void moveWindow(int first, int width);
   void normalize();
 
   PosteriorParams params_;

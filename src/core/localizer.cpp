@@ -788,8 +788,13 @@ void Localizer::appendRow(const Frame& frame)
     views_since_start_ += query && frame.informative && !frame.repeated ? 1 : 0;
   }
   // This frame's costs (energy-normalized) over the keyframes it was compared with, for step 5's posterior
-  // (updatePosterior); a featureless or missed frame brings no evidence.
+  // (updatePosterior); a featureless or missed frame brings no evidence, and the posterior's window follows
+  // the band all the same. A copy of the last view (the camera standing still) is weighed again: leaving it
+  // out lowered fog's worst fold, holding the belief still on it every figure (doc/evaluation_history.md,
+  // twenty-eighth round).
   posterior_row_.has_evidence = query && frame.informative;
+  posterior_row_.first = first;
+  posterior_row_.width = width;
   if (posterior_row_.has_evidence)
     posterior_row_.keep(raw_costs_.data() + first, mask_.data(), first, width);
   if (!recent_queries_.empty())
@@ -1063,6 +1068,7 @@ void Localizer::updatePosterior()
   // tracking band, or the whole map: a global search, a known start's check, a check of the newest frames).
   if (!params_.posterior_confidence || params_.method != SequenceMethod::kOnlineDtw)
     return;  // not published: not computed
+  posterior_.moveTo(posterior_row_.first, posterior_row_.width);  // first: the motion model runs on the band
   posterior_.predict();
   if (posterior_row_.has_evidence)
     posterior_.observe(posterior_row_.costs.data(), posterior_row_.usable.data(), posterior_row_.first,

@@ -33,10 +33,22 @@ void RoutePosterior::setParams(const PosteriorParams& params)
   const std::string invalid = params.validate();
   if (!invalid.empty())
     throw std::invalid_argument("RoutePosterior: " + invalid);
-  const bool speeds_changed = params.max_step != params_.max_step;
+  const int old_speeds = speeds();
   params_ = params;
-  if (speeds_changed && keyframes_ > 0)
-    reset(keyframes_, start_);
+  if (speeds() == old_speeds || keyframes_ < 1)
+    return;
+  // Another set of speeds: each position keeps its mass, spread evenly over the new speeds.
+  const int x_count = positions(), v_count = speeds();
+  next_.assign(static_cast<size_t>(v_count) * x_count, 0.0);
+  for (int x = 0; x < x_count; ++x)
+  {
+    double mass = 0.0;
+    for (int v = 0; v < old_speeds; ++v)
+      mass += p_[static_cast<size_t>(v) * x_count + x];
+    for (int v = 0; v < v_count; ++v)
+      next_[static_cast<size_t>(v) * x_count + x] = mass / v_count;
+  }
+  p_.swap(next_);
 }
 
 void RoutePosterior::reset(int keyframes, int start)
@@ -101,11 +113,19 @@ void RoutePosterior::predict(int frames)
         else
           elsewhere_ += in[x];
       }
-      // Window positions whose source, v positions back, is outside the window but on the route.
-      const int entering = std::min(std::min(v, x_count), 2 * lo_);
-      for (int x = 0; x < entering; ++x)
-        out[x] += density;
-      inflow += entering * density;
+      // From the positions left of the window (route positions [0, 2 lo_)), v positions on: into the
+      // window, or past it (at the route's end: its last keyframe; else it stays elsewhere).
+      for (int source = std::max(0, 2 * lo_ - v); source < 2 * lo_; ++source)
+      {
+        const int to = source + v - 2 * lo_;
+        if (to < x_count)
+          out[to] += density;
+        else if (hi_ == keyframes_)
+          out[x_count - 1] += density;
+        else
+          continue;
+        inflow += density;
+      }
     }
     elsewhere_ = std::max(0.0, elsewhere_ - inflow);
     // Anywhere on the route with probability jump.
@@ -119,7 +139,7 @@ void RoutePosterior::predict(int frames)
   }
 }
 
-void RoutePosterior::moveWindow(int first, int width)
+void RoutePosterior::moveTo(int first, int width)
 {
   const int lo = std::max(0, first), hi = std::min(keyframes_, first + width);
   if (hi <= lo || (lo == lo_ && hi == hi_))
@@ -129,20 +149,18 @@ void RoutePosterior::moveWindow(int first, int width)
   const double density = outsideDensity();  // one position outside the old window, all speeds
   const int new_count = 2 * (hi - lo) - 1;
   next_.assign(static_cast<size_t>(v_count) * new_count, 0.0);
-  double kept = 0.0, total_old = 0.0;
-  for (const double m : p_)
-    total_old += m;
+  double dropped = 0.0;  // what the old window held and the new does not
+  for (int x = old_first; x <= old_last; ++x)
+    if (x < 2 * lo || x > 2 * (hi - 1))
+      for (int v = 0; v < v_count; ++v)
+        dropped += p_[static_cast<size_t>(v) * old_count + x - old_first];
   for (int x = 0; x < new_count; ++x)
   {
     const int absolute = 2 * lo + x;
     if (absolute >= old_first && absolute <= old_last)
     {
       for (int v = 0; v < v_count; ++v)
-      {
-        const double m = p_[static_cast<size_t>(v) * old_count + absolute - old_first];
-        next_[static_cast<size_t>(v) * new_count + x] = m;
-        kept += m;
-      }
+        next_[static_cast<size_t>(v) * new_count + x] = p_[static_cast<size_t>(v) * old_count + absolute - old_first];
     }
     else
     {
@@ -151,45 +169,49 @@ void RoutePosterior::moveWindow(int first, int width)
       elsewhere_ -= density;
     }
   }
-  elsewhere_ = std::max(0.0, elsewhere_ + (total_old - kept));  // what the old window held and the new does not
   p_.swap(next_);
   lo_ = lo;
   hi_ = hi;
+  elsewhere_ = positions() == allPositions() ? 0.0 : std::max(0.0, elsewhere_ + dropped);
 }
 
 void RoutePosterior::observe(const float* costs, const uint8_t* usable, int first, int width)
 {
-  if (keyframes_ < 1 || costs == nullptr || width <= 0)
+  if (keyframes_ < 1 || costs == nullptr)
     return;
+  // The keyframes of the route the row covers: [lo, hi), entries j = k - first.
+  const int lo = std::max(0, first), hi = std::min(keyframes_, first + width);
+  if (hi <= lo)
+    return;
+  const auto used = [&](int k) { return (usable == nullptr || usable[k - first]) && std::isfinite(costs[k - first]); };
   // The usable costs' least and the likelihoods' median (the featureless keyframes' and the outside's).
-  std::vector<double> log_likelihood(static_cast<size_t>(width), 0.0);
-  std::vector<double> usable_values;
-  usable_values.reserve(static_cast<size_t>(width));
   double least = std::numeric_limits<double>::infinity();
-  for (int j = 0; j < width; ++j)
-    if ((usable == nullptr || usable[j]) && std::isfinite(costs[j]))
-      least = std::min(least, static_cast<double>(costs[j]));
+  for (int k = lo; k < hi; ++k)
+    if (used(k))
+      least = std::min(least, static_cast<double>(costs[k - first]));
   if (!std::isfinite(least))
     return;  // no evidence
-  for (int j = 0; j < width; ++j)
-    if ((usable == nullptr || usable[j]) && std::isfinite(costs[j]))
+  std::vector<double> log_likelihood(static_cast<size_t>(hi - lo), 0.0);  // [k - lo]
+  std::vector<double> usable_values;
+  usable_values.reserve(log_likelihood.size());
+  for (int k = lo; k < hi; ++k)
+    if (used(k))
     {
-      log_likelihood[j] = -(costs[j] - least) / params_.cost_scale;
-      usable_values.push_back(log_likelihood[j]);
+      log_likelihood[k - lo] = -(costs[k - first] - least) / params_.cost_scale;
+      usable_values.push_back(log_likelihood[k - lo]);
     }
   const size_t middle = usable_values.size() / 2;
   std::nth_element(usable_values.begin(), usable_values.begin() + middle, usable_values.end());
   const double neutral = usable_values[middle];
-  for (int j = 0; j < width; ++j)
-    if (!((usable == nullptr || usable[j]) && std::isfinite(costs[j])))
-      log_likelihood[j] = neutral;
+  for (int k = lo; k < hi; ++k)
+    if (!used(k))
+      log_likelihood[k - lo] = neutral;
 
-  moveWindow(first, width);
+  moveTo(lo, hi - lo);
   const int v_count = speeds(), x_count = positions();
-  const int offset = lo_ - first;  // the window may have been clipped to the route
   for (int x = 0; x < x_count; ++x)
   {
-    const int k = x / 2 + offset;
+    const int k = x / 2;  // [k - lo]: the window is [lo, hi)
     const double weight =
         std::exp(x % 2 == 0 ? log_likelihood[k] : 0.5 * (log_likelihood[k] + log_likelihood[k + 1]));
     for (int v = 0; v < v_count; ++v)

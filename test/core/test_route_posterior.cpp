@@ -218,13 +218,99 @@ TEST(RoutePosterior, RefusesParametersOutOfTheirRange)
   EXPECT_THROW(posterior.reset(0, -1), std::invalid_argument);
 }
 
-// A new fastest speed is another set of states: the belief starts over from the same start.
-TEST(RoutePosterior, ANewMaxStepStartsOver)
+// A new fastest speed is another set of speeds: each position keeps its mass, spread over the new speeds.
+TEST(RoutePosterior, ANewMaxStepKeepsWhereTheRobotMayBe)
 {
   arl::RoutePosterior posterior(exactParams(2));
   posterior.reset(10, 3);
   posterior.predict(2);
-  EXPECT_LT(posterior.keyframeMass(3), 0.5);
+  std::vector<double> before;
+  for (int k = 0; k < 10; ++k)
+    before.push_back(posterior.keyframeMass(k));
+  EXPECT_NEAR(0.2, before[5], 1e-12);  // keyframes 3..7 hold 0.2 each
   posterior.setParams(exactParams(1));
-  EXPECT_DOUBLE_EQ(1.0, posterior.keyframeMass(3));
+  for (int k = 0; k < 10; ++k)
+    EXPECT_NEAR(before[k], posterior.keyframeMass(k), 1e-12) << k;
+  posterior.predict();  // speeds 0, 1/2, 1 now: from keyframe 3's 0.2, a third stays there
+  EXPECT_NEAR(0.2 / 3.0 + 0.5 * 0.2 / 3.0, posterior.keyframeMass(3), 1e-12);
+}
+
+// With the belief spread evenly, the even spread outside the window is exact: one frame of the motion model on
+// a window gives, inside it, what the whole route's filter gives (the mass that enters the window's start
+// from outside, at every speed, and the jump). Before, the mass entering at speed v landed in the window's
+// first v positions whatever the window's distance from the route's start.
+TEST(RoutePosterior, OnAWindowTheMotionModelIsTheWholeRoutes)
+{
+  arl::PosteriorParams params;
+  params.speed_change = 0.1;
+  params.jump = 0.05;
+  for (const int max_step : { 1, 2, 3 })
+  {
+    params.max_step = max_step;
+    for (const int first : { 1, 2, 5 })
+    {
+      arl::RoutePosterior whole(params), window(params);
+      whole.reset(12, -1);
+      window.reset(12, -1);
+      window.moveTo(first, 3);
+      whole.predict();
+      window.predict();
+      // The middle keyframe: its position and both midpoints are inside the window (an edge keyframe's outer
+      // midpoint is read from the even spread).
+      EXPECT_NEAR(whole.keyframeMass(first + 1), window.keyframeMass(first + 1), 1e-12)
+          << "max_step " << max_step << ", window from " << first;
+      EXPECT_NEAR(1.0, totalMass(window), 1e-12);
+    }
+  }
+}
+
+// Frames without evidence (dark, featureless) while the band moves on: the window follows the band, so the
+// belief moving along with the robot stays in it; left behind, it would run out of the window into the even
+// spread and the answer's confidence fall to nothing (0.003 after 50 frames, measured before the window
+// followed the band).
+TEST(RoutePosterior, TheWindowFollowsTheBandThroughFramesWithoutEvidence)
+{
+  arl::PosteriorParams params;  // the defaults
+  arl::RoutePosterior posterior(params);
+  posterior.reset(1000, 0);
+  int place = 0;
+  for (; place < 100; ++place)  // tracked at one keyframe per frame
+  {
+    const int first = std::max(0, place - 40);
+    posterior.moveTo(first, 81);
+    posterior.predict();
+    std::vector<float> costs(81, 0.6f);
+    costs[place - first] = 0.3f;
+    posterior.observe(costs.data(), nullptr, first, 81);
+  }
+  EXPECT_GT(posterior.withinOne(place - 1), 0.99);
+  for (int frame = 0; frame < 50; ++frame, ++place)  // 50 frames without evidence, the band moving on
+  {
+    posterior.moveTo(place - 40, 81);
+    posterior.predict();
+  }
+  EXPECT_EQ(place - 41, posterior.windowFirst());  // the band of the last frame, at place - 1
+  EXPECT_GT(posterior.withinOne(place - 1), 0.1);  // the belief spreads around the reckoned place
+  EXPECT_LT(posterior.withinOne(place - 1), 0.5);
+  EXPECT_NEAR(1.0, totalMass(posterior), 1e-9);
+}
+
+// A row that lies off the route (an API misuse the Localizer never makes) is no evidence, and only the
+// entries on the route count.
+TEST(RoutePosterior, EntriesOffTheRouteAreIgnored)
+{
+  arl::PosteriorParams params = exactParams();
+  params.cost_scale = 0.05;
+  arl::RoutePosterior posterior(params);
+  posterior.reset(10, -1);
+  const std::vector<float> costs = { 0.0f, 0.5f, 0.5f, 0.5f, 0.5f };
+  posterior.observe(costs.data(), nullptr, 12, 3);   // keyframes 12..14: none on the route
+  posterior.observe(costs.data(), nullptr, -8, 3);   // keyframes -8..-6: none either
+  EXPECT_NEAR(2.0 / 19.0, posterior.keyframeMass(5), 1e-12);
+  EXPECT_EQ(0, posterior.windowFirst());
+  EXPECT_EQ(10, posterior.windowWidth());
+  posterior.observe(costs.data(), nullptr, -1, 5);   // keyframes 0..3 from entries 1..4: all equal, no evidence
+  EXPECT_NEAR(2.0 / 19.0, posterior.keyframeMass(5), 1e-12);  // the cost 0 at keyframe -1 did not count
+  EXPECT_EQ(0, posterior.windowFirst());
+  EXPECT_EQ(4, posterior.windowWidth());
 }
