@@ -594,7 +594,7 @@ class LocalizeOfflineTest(unittest.TestCase):
         for name in ('min_texture_ratio', 'seqslam_sequence_length', 'parallel', 'output_gain'):
             self.assertNotIn(name, user)
         # With --help-advanced every name the parameter file takes is listed (once), with a default and a
-        # line of meaning: the user tier's and the 41 others.
+        # line of meaning: the user tier's and the 46 others.
         result = self.run_runner('--help-advanced')
         self.assertEqual(result.returncode, 0, result.stderr)
         self.assertIn('    skip_penalty = 0.85  (0 .. 10 cost)\n', result.stdout)
@@ -602,9 +602,10 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertNotIn('not shown', result.stdout)
         every = listed(result.stdout)
         self.assertEqual(len(every), len(set(every)))
-        self.assertEqual(len(every), 61)
+        self.assertEqual(len(every), 66)
         self.assertTrue(set(user) < set(every))
-        for name in ('max_step', 'min_texture_ratio', 'output_width', 'seqslam_sequence_length', 'parallel'):
+        for name in ('max_step', 'min_texture_ratio', 'output_width', 'seqslam_sequence_length', 'parallel',
+                     'posterior_cost_scale'):
             self.assertIn(name, every)
 
     def test_a_removed_parameter_in_the_params_file_is_named_with_the_value_it_is_fixed_at(self):
