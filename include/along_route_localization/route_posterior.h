@@ -93,6 +93,7 @@ private:
   int lo_ = 0, hi_ = 0;        ///< the window's keyframes [lo_, hi_)
   std::vector<double> p_;      ///< [speed * positions() + x - 2 * lo_]
   std::vector<double> next_;   ///< scratch, as p_
+  std::vector<double> log_likelihood_, usable_values_;  ///< observe()'s scratch: no allocation once grown
   double elsewhere_ = 0.0;     ///< the mass outside the window
 };
 

@@ -191,9 +191,10 @@ void RoutePosterior::observe(const float* costs, const uint8_t* usable, int firs
       least = std::min(least, static_cast<double>(costs[k - first]));
   if (!std::isfinite(least))
     return;  // no evidence
-  std::vector<double> log_likelihood(static_cast<size_t>(hi - lo), 0.0);  // [k - lo]
-  std::vector<double> usable_values;
-  usable_values.reserve(log_likelihood.size());
+  std::vector<double>& log_likelihood = log_likelihood_;  // [k - lo]
+  std::vector<double>& usable_values = usable_values_;
+  log_likelihood.assign(static_cast<size_t>(hi - lo), 0.0);
+  usable_values.clear();
   for (int k = lo; k < hi; ++k)
     if (used(k))
     {
