@@ -103,6 +103,22 @@ class SelectionTest(unittest.TestCase):
         self.assertEqual(cross_validate.choose(scores, [0, 1, 2], 0)[0], "b")
         self.assertAlmostEqual(cross_validate.choose(scores, [0, 1, 2], 0)[1], 0.7)
 
+    def test_choice_by_recall_takes_the_candidate_whose_confidence_ranks_best(self):
+        # two candidates with the same answers (within one equal), confidences that rank them differently:
+        # by within one the first in order wins the tie on every fold; by recall b (mean 0.8 on any two
+        # folds against a's 0.5) is chosen for each held-out fold
+        def figures(within_one, recall):
+            return {s: {"within_one": within_one, "recall": recall} for s in cross_validate.REPORTED}
+        table = {"a": {f: figures(0.9, 0.5) for f in range(3)}, "b": {f: figures(0.9, 0.8) for f in range(3)}}
+        self.assertAlmostEqual(cross_validate.fold_score(table["b"][0], "recall"), 0.8)
+        self.assertAlmostEqual(cross_validate.fold_score(table["b"][0]), 0.9)
+        for by, expected in (("within_one", "a"), ("recall", "b")):
+            scores = {n: {f: cross_validate.fold_score(table[n][f], by) for f in range(3)} for n in table}
+            for held_out in range(3):
+                self.assertEqual(cross_validate.choose(scores, [0, 1, 2], held_out)[0], expected, by)
+        self.assertEqual(cross_validate.parse_args(["--choose-by", "recall"]).choose_by, "recall")
+        self.assertEqual(cross_validate.parse_args([]).choose_by, "within_one")
+
     def test_candidates_file(self):
         candidates = cross_validate.parse_candidates("# comment\nfast: max_step=3 ring_buffer_rows=20\n\nslow: max_step=1\n")
         self.assertEqual(candidates, [("defaults", []), ("fast", ["max_step=3", "ring_buffer_rows=20"]),
@@ -116,7 +132,8 @@ class SelectionTest(unittest.TestCase):
 
     @unittest.skipIf(built_executable("localize_offline") is None, "localize_offline not built (source the workspace)")
     def test_the_shipped_candidate_grids_name_parameters_in_range(self):
-        # doc/cv_core_parameters.txt, doc/cv_decision_parameters.txt and doc/cv_ablations.txt, the grids
+        # doc/cv_core_parameters.txt, doc/cv_decision_parameters.txt, doc/cv_ablations.txt and
+        # doc/cv_posterior.txt, the grids
         # doc/results.md reports:
         # every name one localize_offline takes, every value inside its range (a misspelt name or a value out
         # of range would be refused or corrected by the runs, and the figures would be those of another grid).
@@ -129,7 +146,7 @@ class SelectionTest(unittest.TestCase):
         self.assertIn("column_centering", switches)
         doc = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "doc")
         for file_name, count in (("cv_core_parameters.txt", 18), ("cv_decision_parameters.txt", 19),
-                                 ("cv_ablations.txt", 19)):
+                                 ("cv_ablations.txt", 19), ("cv_posterior.txt", 26)):
             with open(os.path.join(doc, file_name)) as f:
                 candidates = cross_validate.parse_candidates(f.read())
             self.assertEqual(len(candidates), count, file_name)
