@@ -104,8 +104,10 @@ struct LocalizerParams
   /// first), from the cruise_speed_frames-th on an exponential moving average over that many. The DTW's
   /// tie-break between speeds follows it (cruiseSpeedTieBreak): a robot that drives at half the speed it
   /// taught, or a map taught with twice the frame spacing, is followed at half speed through views that
-  /// cannot tell speeds apart, instead of at one keyframe per frame. Frames; 0 = off (the nominal speed
-  /// always).
+  /// cannot tell speeds apart, instead of at one keyframe per frame. When the track moves to another place
+  /// (a refuted start, a carried robot found, a place confirmed after a loss) the steps since the last
+  /// confident answer are dropped: the speed is what it was there (the nominal 1 if none, or only a known
+  /// start under its check). Frames; 0 = off (the nominal speed always).
   int cruise_speed_frames = 100;
   DtwParams dtw;                      ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
@@ -155,8 +157,8 @@ struct LocalizerParams
   /// (calibratedConfidence; a logistic fit, Platt scaling). scripts/cross_validate fits both on real
   /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
   /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. Both dimensionless.
-  float calibration_offset = 0.036f;
-  float calibration_slope = 5.180f;
+  float calibration_offset = 0.069f;
+  float calibration_slope = 5.134f;
   /// Step 5, the confidence a probability: with posterior_confidence (the default) c above is not the DTW's
   /// margin but the mass within one keyframe of the answer of a forward filter over the route
   /// (RoutePosterior, route_posterior.h), fed with each frame's energy-normalized costs over the keyframes
@@ -628,6 +630,8 @@ private:
   int tracked_frames_ = 0;               // frames answered since tracking last started
   double cruise_speed_ = 1.0;            // keyframes per frame: the mean of cruise_samples_ samples
   int cruise_samples_ = 1;               // the nominal speed counts as the first
+  double confirmed_cruise_speed_ = 1.0;  // cruise_speed_ at the last confident answer
+  int confirmed_cruise_samples_ = 1;
   GlobalConfirmation confirmation_;
   LossDetector loss_;
   FrameClock clock_;

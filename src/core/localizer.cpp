@@ -388,8 +388,8 @@ void Localizer::reset()
   run_position_ = -1.0;
   reckon_position_ = -1.0;
   tracked_frames_ = 0;
-  cruise_speed_ = 1.0;
-  cruise_samples_ = 1;
+  cruise_speed_ = confirmed_cruise_speed_ = 1.0;
+  cruise_samples_ = confirmed_cruise_samples_ = 1;
   recent_count_ = recent_next_ = 0;
   clock_.forgetLastStamp();
   start();
@@ -912,6 +912,11 @@ void Localizer::trackStep(Frame* frame, SequenceMatch* match, bool confident)
       transition(State::kTracking);  // evidence again: the DTW's answer
     last_confident_ = match->keyframe;
     frames_since_confident_ = 0;
+    if (!frame->checking_start)  // (a known start under its check is only assumed)
+    {
+      confirmed_cruise_speed_ = cruise_speed_;  // the speed the images have borne out so far
+      confirmed_cruise_samples_ = cruise_samples_;
+    }
   }
   else
     ++frames_since_confident_;
@@ -1155,6 +1160,10 @@ void Localizer::transition(State next, int place)
       // A place confirmed (a global search, the start's check, the checks while coasting): a new track,
       // which owes nothing to an old one's answers (its last confident one, its dead reckoning while lost).
       last_match_ = place;
+      // The steps of a track the images did not bear out (followed since its last confident answer, or a
+      // known start the check refuted) were not the robot's: its speed is what it was at that answer.
+      cruise_speed_ = confirmed_cruise_speed_;
+      cruise_samples_ = confirmed_cruise_samples_;
       last_confident_ = -1;
       frames_since_confident_ = 0;
       lost_position_ = lost_anchor_ = -1.0;

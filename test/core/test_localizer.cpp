@@ -311,6 +311,9 @@ TEST(Localizer, AStartElsewhereIsRefutedByTheGlobalSearch)
   // Told it starts at keyframe 0, the robot starts at keyframe 40. The global search over the same rows
   // confirms 40.. as an unknown start would (TracksExactKeyframesInOrder: the 9th frame) and the track
   // moves there; until then the answers stay near the start (the paths all start at keyframe 0).
+  // Those answers are the DTW's guesses, not the robot's steps: once the track has moved, the cruise speed
+  // is what the images have borne out, the nominal 1 (no confident answer before but under the start's
+  // check), and the frames after the move, one keyframe each, keep it exactly there.
   const auto map = syntheticMap(60);
   arl::LocalizerParams params;
   params.ring_buffer_rows = 20;
@@ -327,6 +330,14 @@ TEST(Localizer, AStartElsewhereIsRefutedByTheGlobalSearch)
     else
     {
       EXPECT_EQ(40 + i, result.keyframe) << "frame " << i;
+    }
+    if (i == switched - 1)
+    {
+      EXPECT_NE(1.0, localizer.cruiseSpeed());  // the answers near the start did not go one keyframe a frame
+    }
+    if (i >= switched)
+    {
+      EXPECT_DOUBLE_EQ(1.0, localizer.cruiseSpeed()) << "frame " << i;
     }
   }
   // A start that does not exist is refused.
