@@ -252,6 +252,31 @@ class BadInputTest(unittest.TestCase):
         finally:
             shutil.rmtree(tmp)
 
+    def test_first_frame_moves_every_fold_and_is_checked_against_the_line(self):
+        import shutil
+        import tempfile
+        import numpy as np
+        tmp = tempfile.mkdtemp(prefix="test_cross_validate_first_")
+        try:
+            data = fake_nordland(os.path.join(tmp, "data"), 80,
+                                 lambda season, k: np.full((4, 8), (season == "winter") * 100 + k, np.uint8))
+            # 2 folds of 30 from frame 15: frames 15-44 and 45-74
+            code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv"), "--folds", "2",
+                                      "--fold-size", "30", "--seeds", "1", "--first-frame", "15",
+                                      "--localize-offline", "/bin/true")
+            self.assertEqual(code, 1, err)  # (/bin/true writes no results: the folds are made, then it stops)
+            for fold, first in (("fold1", 15), ("fold2", 45)):
+                self.assertEqual(os.path.realpath(os.path.join(tmp, "cv", "folds", fold, "aligned", "map", "00000.png")),
+                                 os.path.realpath(os.path.join(data, "summer", "images-%05d.png" % first)))
+            # from frame 25 they would need frame 84 of 80: refused before anything is made
+            code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv2"), "--folds", "2",
+                                      "--fold-size", "30", "--first-frame", "25", "--localize-offline", "/bin/true")
+            self.assertEqual(code, 1)
+            self.assertIn("from frame 25 need 85 frames", err)
+            self.assertFalse(os.path.exists(os.path.join(tmp, "cv2")))
+        finally:
+            shutil.rmtree(tmp)
+
 
 if __name__ == "__main__":
     unittest.main()
