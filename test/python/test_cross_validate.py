@@ -266,7 +266,8 @@ class BadInputTest(unittest.TestCase):
                                       "--localize-offline", "/bin/true")
             self.assertEqual(code, 1, err)  # (/bin/true writes no results: the folds are made, then it stops)
             for fold, first in (("fold1", 15), ("fold2", 45)):
-                self.assertEqual(os.path.realpath(os.path.join(tmp, "cv", "folds", fold, "aligned", "map", "00000.png")),
+                first_keyframe = os.path.join(tmp, "cv", "folds", fold, "aligned", "map", "00000.png")
+                self.assertEqual(os.path.realpath(first_keyframe),
                                  os.path.realpath(os.path.join(data, "summer", "images-%05d.png" % first)))
             # from frame 25 they would need frame 84 of 80: refused before anything is made
             code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv2"), "--folds", "2",
