@@ -106,8 +106,9 @@ struct LocalizerParams
   /// taught, or a map taught with twice the frame spacing, is followed at half speed through views that
   /// cannot tell speeds apart, instead of at one keyframe per frame. When the track moves to another place
   /// (a refuted start, a carried robot found, a place confirmed after a loss) the steps since the last
-  /// confident answer are dropped: the speed is what it was there (the nominal 1 if none, or only a known
-  /// start under its check). Frames; 0 = off (the nominal speed always).
+  /// confident answer are dropped: the speed is what it was there, that answer's own step included (the
+  /// nominal 1 if there was none but on a known start under its check, which is only assumed). Frames;
+  /// 0 = off (the nominal speed always).
   int cruise_speed_frames = 100;
   DtwParams dtw;                      ///< s (max_step), stop and skip penalties, exclusion radius
   SeqSlamParams seqslam;              ///< baseline only
@@ -157,8 +158,8 @@ struct LocalizerParams
   /// (calibratedConfidence; a logistic fit, Platt scaling). scripts/cross_validate fits both on real
   /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
   /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. Both dimensionless.
-  float calibration_offset = 0.069f;
-  float calibration_slope = 5.134f;
+  float calibration_offset = 0.070f;
+  float calibration_slope = 5.132f;
   /// Step 5, the confidence a probability: with posterior_confidence (the default) c above is not the DTW's
   /// margin but the mass within one keyframe of the answer of a forward filter over the route
   /// (RoutePosterior, route_posterior.h), fed with each frame's energy-normalized costs over the keyframes
@@ -411,6 +412,7 @@ private:
     int reach_first = 0, reach_width = 0;  // keyframes its match may end at (lost, !detect_kidnapping: reachable)
     int predicted = 0;               // keyframe predicted while tracking: one ahead of the last match
     bool relocated = false;          // the track moved to another place on this frame (no speed sample)
+    bool borne_out = false;          // a confident answer on a place not only assumed: the speed is kept
     bool moved_by_check = false;     // ... by the checks of recentCheck or coastStep (moveTrackOnConfirmation)
     bool contradicted = false;       // this frame's check (coasting, recentCheck) found another place: lost
   };
@@ -630,7 +632,7 @@ private:
   int tracked_frames_ = 0;               // frames answered since tracking last started
   double cruise_speed_ = 1.0;            // keyframes per frame: the mean of cruise_samples_ samples
   int cruise_samples_ = 1;               // the nominal speed counts as the first
-  double confirmed_cruise_speed_ = 1.0;  // cruise_speed_ at the last confident answer
+  double confirmed_cruise_speed_ = 1.0;  // cruise_speed_ at the last confident answer (Frame::borne_out)
   int confirmed_cruise_samples_ = 1;
   GlobalConfirmation confirmation_;
   LossDetector loss_;

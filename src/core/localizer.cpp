@@ -698,6 +698,11 @@ LocalizationResult Localizer::step(const uint8_t* query, float energy)
     trackStep(&frame, &match, confident);
   if (state_ == State::kTracking || state_ == State::kCoasting)
     followTrack(frame, match.keyframe);
+  if (frame.borne_out)
+  {
+    confirmed_cruise_speed_ = cruise_speed_;
+    confirmed_cruise_samples_ = cruise_samples_;
+  }
   updatePosterior();
   // The frame that moved the track to a confirmed place: that place's confidence, from the check that
   // confirmed it, not the old track's.
@@ -912,11 +917,9 @@ void Localizer::trackStep(Frame* frame, SequenceMatch* match, bool confident)
       transition(State::kTracking);  // evidence again: the DTW's answer
     last_confident_ = match->keyframe;
     frames_since_confident_ = 0;
-    if (!frame->checking_start)  // (a known start under its check is only assumed)
-    {
-      confirmed_cruise_speed_ = cruise_speed_;  // the speed the images have borne out so far
-      confirmed_cruise_samples_ = cruise_samples_;
-    }
+    // The speed the images have borne out so far (kept in step(), after this frame's own step); a known
+    // start under its check is only assumed (without detect_kidnapping it is a fact).
+    frame->borne_out = !(frame->checking_start && params_.detect_kidnapping);
   }
   else
     ++frames_since_confident_;

@@ -347,6 +347,38 @@ TEST(Localizer, AStartElsewhereIsRefutedByTheGlobalSearch)
   EXPECT_NO_THROW(arl::Localizer(map, params));
 }
 
+TEST(Localizer, ACarriedRobotsSpeedGoesBackTowardsWhatTheImagesBoreOut)
+{
+  // The robot drives keyframes 0..29 at half a keyframe a frame (each one shown twice), every answer
+  // confident; then it is carried to keyframe 80 and drives on at one keyframe a frame. Until the checks move
+  // the track there, the answers follow the old place, and their steps are not the robot's. On the frame the
+  // track moves, the cruise speed goes back to its value at the last confident answer: nearer the speed
+  // before the carry than while the answers wandered (left as it was, or reset to the nominal 1, it is not).
+  // Not all the way: the first frames after the carry are still confident (the window's older rows hold the
+  // old place), so their steps stay in it.
+  const auto map = syntheticMap(120);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  for (int i = 0; i < 60; ++i)
+    ASSERT_EQ(i / 2, localizer.process(keyframeCopy(*map, i / 2)).keyframe) << "frame " << i;
+  const double before = localizer.cruiseSpeed();
+  EXPECT_NEAR(0.5, before, 0.01);  // (1 + 59 steps of 0 or 1, half each) / 60
+  double wandering = before;  // the speed just before the track moved
+  int moved = -1;
+  for (int i = 0; i < 40 && moved < 0; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, 80 + i));
+    if (result.status == LocalizationStatus::kTracking && std::abs(result.keyframe - (80 + i)) <= 1)
+      moved = i;
+    else
+      wandering = localizer.cruiseSpeed();
+  }
+  ASSERT_GE(moved, 0) << "the track never moved to the place the robot was carried to";
+  const double after = localizer.cruiseSpeed();
+  std::printf("cruise speed before the carry %.3f, while the answers wandered %.3f, after the move (frame %d) %.3f\n",
+              before, wandering, moved, after);
+  EXPECT_LT(std::abs(after - before), std::abs(wandering - before));
+}
+
 namespace
 {
 

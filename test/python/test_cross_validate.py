@@ -230,54 +230,44 @@ class BadInputTest(unittest.TestCase):
         finally:
             shutil.rmtree(tmp)
 
-    def test_map_season_winter_makes_folds_with_the_winter_frames_as_the_map(self):
+    def folds_made(self, frames, *args):
+        """Fake Nordland frames (summer frame k all k, winter 100 + k), then cross_validate with 2 folds of 30 and
+        a runner that writes no results (/bin/true): it stops at the first evaluation, after the folds are made.
+        Returns (the data folder, the output folder, exit code, stderr)."""
         import shutil
         import tempfile
         import numpy as np
-        tmp = tempfile.mkdtemp(prefix="test_cross_validate_season_")
-        try:
-            data = fake_nordland(os.path.join(tmp, "data"), 60,
-                                 lambda season, k: np.full((4, 8), (season == "winter") * 100 + k, np.uint8))
-            # /bin/true writes no results: the run stops at the first evaluation, after the folds are made
-            code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv"), "--folds", "2",
-                                      "--fold-size", "30", "--seeds", "1", "--map-season", "winter",
-                                      "--localize-offline", "/bin/true")
-            self.assertEqual(code, 1, err)
-            fold2 = os.path.join(tmp, "cv", "folds", "fold2")
-            for scenario in ("aligned", os.path.join("seed1", "stop_and_go")):
-                self.assertEqual(os.path.realpath(os.path.join(fold2, scenario, "map", "00000.png")),
-                                 os.path.realpath(os.path.join(data, "winter", "images-00030.png")))
-            self.assertEqual(os.path.realpath(os.path.join(fold2, "aligned", "query", "00000.png")),
-                             os.path.realpath(os.path.join(data, "summer", "images-00030.png")))
-        finally:
-            shutil.rmtree(tmp)
+        tmp = tempfile.mkdtemp(prefix="test_cross_validate_folds_")
+        self.addCleanup(shutil.rmtree, tmp)
+        data = fake_nordland(os.path.join(tmp, "data"), frames,
+                             lambda season, k: np.full((4, 8), (season == "winter") * 100 + k, np.uint8))
+        output = os.path.join(tmp, "cv")
+        code, err = self.run_main("--data", data, "--output", output, "--folds", "2", "--fold-size", "30",
+                                  "--seeds", "1", "--localize-offline", "/bin/true", *args)
+        return data, output, code, err
+
+    def test_map_season_winter_makes_folds_with_the_winter_frames_as_the_map(self):
+        data, output, code, err = self.folds_made(60, "--map-season", "winter")
+        self.assertEqual(code, 1, err)
+        fold2 = os.path.join(output, "folds", "fold2")
+        for scenario in ("aligned", os.path.join("seed1", "stop_and_go")):
+            self.assertEqual(os.path.realpath(os.path.join(fold2, scenario, "map", "00000.png")),
+                             os.path.realpath(os.path.join(data, "winter", "images-00030.png")))
+        self.assertEqual(os.path.realpath(os.path.join(fold2, "aligned", "query", "00000.png")),
+                         os.path.realpath(os.path.join(data, "summer", "images-00030.png")))
 
     def test_first_frame_moves_every_fold_and_is_checked_against_the_line(self):
-        import shutil
-        import tempfile
-        import numpy as np
-        tmp = tempfile.mkdtemp(prefix="test_cross_validate_first_")
-        try:
-            data = fake_nordland(os.path.join(tmp, "data"), 80,
-                                 lambda season, k: np.full((4, 8), (season == "winter") * 100 + k, np.uint8))
-            # 2 folds of 30 from frame 15: frames 15-44 and 45-74
-            code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv"), "--folds", "2",
-                                      "--fold-size", "30", "--seeds", "1", "--first-frame", "15",
-                                      "--localize-offline", "/bin/true")
-            self.assertEqual(code, 1, err)  # (/bin/true writes no results: the folds are made, then it stops)
-            for fold, first in (("fold1", 15), ("fold2", 45)):
-                first_keyframe = os.path.join(tmp, "cv", "folds", fold, "aligned", "map", "00000.png")
-                self.assertEqual(os.path.realpath(first_keyframe),
-                                 os.path.realpath(os.path.join(data, "summer", "images-%05d.png" % first)))
-            # from frame 25 they would need frame 84 of 80: refused before anything is made
-            code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv2"), "--folds", "2",
-                                      "--fold-size", "30", "--first-frame", "25", "--localize-offline", "/bin/true")
-            self.assertEqual(code, 1)
-            self.assertIn("from frame 25 need 85 frames", err)
-            self.assertFalse(os.path.exists(os.path.join(tmp, "cv2")))
-        finally:
-            shutil.rmtree(tmp)
-
+        # 2 folds of 30 from frame 15: frames 15-44 and 45-74
+        data, output, code, err = self.folds_made(80, "--first-frame", "15")
+        self.assertEqual(code, 1, err)
+        for fold, first in (("fold1", 15), ("fold2", 45)):
+            self.assertEqual(os.path.realpath(os.path.join(output, "folds", fold, "aligned", "map", "00000.png")),
+                             os.path.realpath(os.path.join(data, "summer", "images-%05d.png" % first)))
+        # from frame 25 they would need frame 84 of 80: refused before anything is made
+        data, output, code, err = self.folds_made(80, "--first-frame", "25")
+        self.assertEqual(code, 1)
+        self.assertIn("from frame 25 need 85 frames", err)
+        self.assertFalse(os.path.exists(output))
 
 if __name__ == "__main__":
     unittest.main()
