@@ -113,7 +113,7 @@ class SelectionTest(unittest.TestCase):
         self.assertAlmostEqual(cross_validate.fold_score(table["b"][0], "recall"), 0.8)
         self.assertAlmostEqual(cross_validate.fold_score(table["b"][0]), 0.9)
         for by, expected in (("within_one", "a"), ("recall", "b")):
-            scores = {n: {f: cross_validate.fold_score(table[n][f], by) for f in range(3)} for n in table}
+            scores = cross_validate.fold_scores(table, [0, 1, 2], by)
             for held_out in range(3):
                 self.assertEqual(cross_validate.choose(scores, [0, 1, 2], held_out)[0], expected, by)
         self.assertEqual(cross_validate.parse_args(["--choose-by", "recall"]).choose_by, "recall")
