@@ -159,7 +159,7 @@ struct LocalizerParams
   /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
   /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. Both dimensionless.
   float calibration_offset = 0.070f;
-  float calibration_slope = 5.132f;
+  float calibration_slope = 5.169f;
   /// Step 5, the confidence a probability: with posterior_confidence (the default) c above is not the DTW's
   /// margin but the mass within one keyframe of the answer of a forward filter over the route
   /// (RoutePosterior, route_posterior.h), fed with each frame's energy-normalized costs over the keyframes
@@ -506,6 +506,9 @@ private:
   /// keyframe, confirm it (its place confidence over them at least confidence_threshold): then no check
   /// weighs another place (recentCheck, checkStart). False while the window holds fewer rows.
   bool newestRowsSupport(const Frame& frame, int track_keyframe);
+  /// Whether the newest relocalization_rows rows of a check's whole-map window (recentCheck), as a path over
+  /// the whole map, end at `place` (within the exclusion radius, in runs).
+  bool newestRowsEndAt(const CostRingBuffer& check, int place);
   /// The loss detection fired on the track at `track_keyframe`: whether the last relocalization_rows frames
   /// (recent_queries_, this one the newest), compared with the whole map as a sequence, end at another
   /// place (farther than the exclusion radius, in runs) that is confidently better than every other place

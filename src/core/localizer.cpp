@@ -968,12 +968,19 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
     return;
   }
   // Do the newest rows alone support the track's end? The whole window may still, for K / 2 frames after
-  // the robot was carried elsewhere.
-  if (newestRowsSupport(*frame, match->keyframe))
-  {
+  // the robot was carried elsewhere. Supported, the check ends, unless its last verdict was a contradiction:
+  // the band holds only the track's neighbourhood, where a look-alike can support the track by chance while
+  // the whole map still holds the place that beats it (below).
+  const auto endCheck = [this]() {
     recent_checking_ = false;
     recent_unanswered_ = 0;
     recent_confirmation_.clear();
+  };
+  const bool supported = newestRowsSupport(*frame, match->keyframe);
+  const bool was_contradicted = recent_checking_ && recent_contradicted_;
+  if (supported && !was_contradicted)
+  {
+    endCheck();
     return;
   }
   // The check's window starts with the newest `rows` frames and grows by each frame it goes on for, up to K
@@ -993,6 +1000,16 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   // confirm that place and the track moves there.
   frame->contradicted =
       trackContradicted(match->keyframe, recent_checking_ ? 1 + recent_pending_ : 0, check_window, &recent_ring_);
+  // A check that found the track contradicted goes on while the band supports the track, until the newest
+  // rows alone, compared with the whole map, end at the track too. Ended on the band's support alone, it gave
+  // a carried robot back to the old place (kidnapped, fold 4: published there, tracking, for 5 frames
+  // between two lost runs).
+  if (supported && newestRowsEndAt(recent_ring_, match->keyframe))
+  {
+    frame->contradicted = false;
+    endCheck();
+    return;
+  }
   recent_checking_ = true;
   recent_contradicted_ = frame->contradicted;
   recent_pending_ = 0;
@@ -1224,6 +1241,17 @@ bool Localizer::newestRowsSupport(const Frame& frame, int track_keyframe)
   const SequenceMatch newest = dtw_.match(ring_, frame.first, frame.width, rows, false, map_stats_.run.data(),
                                           track_keyframe, track_keyframe);
   return matchConfidence(newest, true, 1.0) >= params_.confidence_threshold;
+}
+
+bool Localizer::newestRowsEndAt(const CostRingBuffer& check, int place)
+{
+  const int rows = std::min({ params_.relocalization_rows, params_.ring_buffer_rows, check.size() });
+  if (rows <= 0 || place < 0)
+    return false;
+  const SequenceMatch newest =
+      dtw_.match(check, 0, static_cast<int>(map_->size()), rows, false, map_stats_.run.data());
+  return newest.keyframe >= 0 &&
+         std::abs(map_stats_.run[newest.keyframe] - map_stats_.run[place]) <= params_.dtw.exclusion_radius;
 }
 
 bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, CostRingBuffer* ring)

@@ -404,10 +404,14 @@ TEST(Localizer, AKnownStartIsKeptAgainstALookAlikeFoundAfterIt)
   // in a row; without the rule below the track moved there). From keyframe 4 on frame 4 the robot could
   // not have reached 150 by frame 15 (at most max_step = 2 keyframes a frame, with the exclusion radius
   // 5: 4 + 2 x 11 + 5 = 31): the start holds, and the answers stay on the route's start (the band, radius
-  // 40, never holds 140). Frames 20-34, on the route again: its own keyframes (on frames 20 and 21, the
+  // 40, never holds 140). Frames 20-34, on the route again: its own keyframes (on frames 20 to 23, the
   // check over, the newest 8 frames, mostly beside the route, still contradict the track: published lost,
-  // recentCheck, until its own views support it again; the answer is the look-alike's place (measured: 155
-  // on both), which those frames show better than the track by more than chance does on this map).
+  // recentCheck, until they no longer end at the look-alike; the answer is the look-alike's place (measured:
+  // 155, 155, 157, 158), which those frames show better than the track by more than chance does on this map.
+  // On frames 22 and 23 the band already supports the track, but a check that found it contradicted goes on
+  // until the newest frames over the whole map end at the track too: 2 frames lost more than when the band's
+  // support alone ended it, the price of not giving a carried robot back to a look-alike of its old place,
+  // AContradictedTrackIsNotRestoredByItsBandAlone).
   const auto map = syntheticMap(200);
   arl::LocalizerParams params;
   params.ring_buffer_rows = 20;
@@ -418,7 +422,7 @@ TEST(Localizer, AKnownStartIsKeptAgainstALookAlikeFoundAfterIt)
       const bool beside = i >= 5 && i < 20;
       const arl::LocalizationResult result =
           localizer.process(beside ? besideTheRoute(*map, i, 140 + (i - 5)) : keyframeCopy(*map, i));
-      if (i < 20 || i >= 22)
+      if (i < 20 || i >= 24)
       {
         EXPECT_EQ(LocalizationStatus::kTracking, result.status) << "beside the start, frame " << i;
         EXPECT_LE(result.keyframe, 2 * i) << "beside the start, frame " << i;
@@ -428,9 +432,10 @@ TEST(Localizer, AKnownStartIsKeptAgainstALookAlikeFoundAfterIt)
       {
         EXPECT_EQ(LocalizationStatus::kLost, result.status) << "beside the start, frame " << i;
         EXPECT_EQ(0.0, result.confidence) << "beside the start, frame " << i;
-        // where the frames beside the route (like 140..154) left the look-alike, or a step or two on
+        // where the frames beside the route (like 140..154) left the look-alike, or a step or two on for
+        // each frame since
         EXPECT_GE(result.keyframe, 154) << "beside the start, frame " << i;
-        EXPECT_LE(result.keyframe, 156) << "beside the start, frame " << i;
+        EXPECT_LE(result.keyframe, 156 + 2 * (i - 20)) << "beside the start, frame " << i;
       }
       if (i >= 25)
       {
@@ -2285,6 +2290,57 @@ TEST(Localizer, CarriedFromTheRouteEndTheGrowingCheckFindsTheRobot)
   // measured 22 and 17; with the check's window kept at the newest 8 rows, 22 and 23
   EXPECT_LE(ahead, 26);
   EXPECT_LE(back, 20);
+}
+
+TEST(Localizer, AContradictedTrackIsNotRestoredByItsBandAlone)
+{
+  SKIP_WITHOUT_NORDLAND();
+  // The cross-validation's kidnapped scenario on fold 4 (frames 894..1191): winter frames of keyframes 0..98,
+  // then carried 99 on, to 198..237. The check of the newest frames finds the track contradicted (published
+  // lost at the new place), and four frames later a look-alike in the band supports the old track's end for
+  // a while. That ended the check, and the old place was published, tracking, for 5 frames before the next
+  // contradiction. A check that found the track contradicted now goes on until the newest frames, compared
+  // with the whole map, end at the track too: the old place comes back only where the check's window no
+  // longer contradicts it (here never; on the same frames through localize_offline, whose decoding of the
+  // images differs a little, 3 frames where the new place's margin over the track fell short of its share
+  // of chance, contradiction_margin_share).
+  const int first = 894, keyframes = 298;
+  arl::Preprocessor preprocessor;
+  const auto preprocess = [&preprocessor](const cv::Mat& raw) {
+    cv::Mat out;
+    preprocessor.process(raw, arl::PixelFormat::kBgr8, out);
+    return out;
+  };
+  auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
+  const std::vector<cv::Mat> summer = nordland::loadFrames("summer", first, keyframes);
+  for (size_t k = 0; k < summer.size(); ++k)
+    map->addKeyframe(preprocess(summer[k]), 1000000000LL * static_cast<int64_t>(k));
+  const std::vector<cv::Mat> winter = nordland::loadFrames("winter", first, keyframes);
+  std::vector<int> truth;
+  for (int k = 0; k < 99; ++k)
+    truth.push_back(k);
+  for (int k = 198; k < 238; ++k)
+    truth.push_back(k);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  std::string marks;
+  for (const int k : truth)
+  {
+    const arl::LocalizationResult r = localizer.process(preprocess(winter[k]));
+    const bool right = std::abs(r.keyframe - k) <= 1;
+    marks += r.status == LocalizationStatus::kLost ? 'l' : (right ? '.' : 'x');
+  }
+  std::printf("kidnapped, fold 4: %s\n", marks.c_str());
+  EXPECT_EQ(std::string(99, '.'), marks.substr(0, 99));
+  const size_t first_lost = marks.find('l', 99);
+  ASSERT_NE(std::string::npos, first_lost) << "the carry was never found";
+  const size_t lost_end = marks.find_first_not_of('l', first_lost);
+  ASSERT_NE(std::string::npos, lost_end);
+  const size_t right_again = marks.find('.', lost_end);
+  ASSERT_NE(std::string::npos, right_again) << "the new place was never tracked";
+  const long old_place_again = std::count(marks.begin() + lost_end, marks.begin() + right_again, 'x');
+  // measured 0; 5 when the band's support ended the check
+  EXPECT_LE(old_place_again, 2);
+  EXPECT_EQ(std::string(marks.size() - right_again, '.'), marks.substr(right_again));
 }
 
 TEST(Localizer, LeavesTheRouteThenRelocalizes)
