@@ -117,7 +117,9 @@ struct LocalizerParams
   /// seen, and the loss was judged on them; the rows of the lost track are dropped: they covered only its
   /// band; at most K - 1 are used); (2) while tracking, whenever they alone do not support the track's
   /// end, so that a robot carried elsewhere is found there as soon as they show it, not K / 2 frames later
-  /// when the whole window stops supporting the old place (recentCheck). Each such frame computes their
+  /// when the whole window stops supporting the old place (recentCheck; a check that has found the track
+  /// contradicted goes on while they support it, until they also end at the track over the whole map).
+  /// Each such frame computes their
   /// whole-map rows (while a check goes on, only those of the frames since its last one), so it costs
   /// about as much as a global frame (doc/results.md, Performance); the check's window grows by each frame
   /// it goes on for, up to K rows, and after K checks in a row found no place elsewhere the check rests
@@ -442,7 +444,9 @@ private:
   /// (trackContradicted), and so is each new view while the check goes on (its window growing to K rows);
   /// once init_confirm_frames such checks in a row found the same place moving as the
   /// robot can, the track moves there (moveTrackOnConfirmation). The whole window, K rows, lags K / 2 frames behind a
-  /// robot that was carried elsewhere; its newest rows do not.
+  /// robot that was carried elsewhere; its newest rows do not. The newest rows' support ends a check, but one
+  /// that has found the track contradicted only once they also end at the track over the whole map
+  /// (newestRowsEndAt): the band alone can hold a look-alike of the old place.
   void recentCheck(Frame* frame, SequenceMatch* match);
   /// Still tracking after the handler: the cruise speed's sample and the last match.
   void followTrack(const Frame& frame, int keyframe);
@@ -523,7 +527,7 @@ private:
   /// new_rows: the check goes on, the newest new_rows frames (those since its last row) are new; 0: it
   /// starts afresh.
   /// The rows weighed: the newest `window` recent queries' whole-map rows, kept in `ring` (coasting: K rows in
-  /// check_ring_; recentCheck: relocalization_rows rows in recent_ring_).
+  /// check_ring_; recentCheck: K rows in recent_ring_, the check's window growing to them).
   bool trackContradicted(int track_keyframe, int new_rows, int window, CostRingBuffer* ring);
   /// The keyframes a robot that only moves as it drives (detect_kidnapping false) can be at `frames` frames
   /// after the images placed it at `anchor` (a lost track's last answer; coasting: the last confident one):
@@ -657,6 +661,7 @@ private:
   bool recent_checking_ = false;           // the last new view was checked against the whole map
   bool recent_contradicted_ = false;       // and that check found the track contradicted
   int recent_unanswered_ = 0;              // checks in a row that found no place elsewhere
+  bool recent_found_contradiction_ = false;  // the check under way has found the track contradicted
   int recent_pending_ = 0;                 // frames since the check's last row (featureless, repeated, missed)
   int check_pending_ = 0;                  // missed frames since the coasting check's last row
   GlobalConfirmation recent_confirmation_; // of those checks: another place, confirmed

@@ -968,7 +968,7 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
     return;
   }
   // Do the newest rows alone support the track's end? The whole window may still, for K / 2 frames after
-  // the robot was carried elsewhere. Supported, the check ends, unless its last verdict was a contradiction:
+  // the robot was carried elsewhere. Supported, the check ends, unless it has found the track contradicted:
   // the band holds only the track's neighbourhood, where a look-alike can support the track by chance while
   // the whole map still holds the place that beats it (below).
   const auto endCheck = [this]() {
@@ -977,8 +977,7 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
     recent_confirmation_.clear();
   };
   const bool supported = newestRowsSupport(*frame, match->keyframe);
-  const bool was_contradicted = recent_checking_ && recent_contradicted_;
-  if (supported && !was_contradicted)
+  if (supported && !(recent_checking_ && recent_found_contradiction_))
   {
     endCheck();
     return;
@@ -1000,10 +999,12 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   // confirm that place and the track moves there.
   frame->contradicted =
       trackContradicted(match->keyframe, recent_checking_ ? 1 + recent_pending_ : 0, check_window, &recent_ring_);
-  // A check that found the track contradicted goes on while the band supports the track, until the newest
-  // rows alone, compared with the whole map, end at the track too. Ended on the band's support alone, it gave
-  // a carried robot back to the old place (kidnapped, fold 4: published there, tracking, for 5 frames
-  // between two lost runs).
+  recent_found_contradiction_ = (recent_checking_ && recent_found_contradiction_) || frame->contradicted;
+  // A check that has found the track contradicted goes on while the band supports the track, until the
+  // newest rows alone, compared with the whole map, end at the track too (or the checks confirm the other
+  // place, or as many checks as the window has rows found none: above). Ended on the band's support alone, it
+  // gave a carried robot back to the old place between two lost runs, and the next check started afresh
+  // from the newest rows (kidnapped, fold 4: 5 frames in the gtest AContradictedTrackIsNotRestoredByItsBandAlone).
   if (supported && newestRowsEndAt(recent_ring_, match->keyframe))
   {
     frame->contradicted = false;

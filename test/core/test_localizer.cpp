@@ -405,13 +405,13 @@ TEST(Localizer, AKnownStartIsKeptAgainstALookAlikeFoundAfterIt)
   // not have reached 150 by frame 15 (at most max_step = 2 keyframes a frame, with the exclusion radius
   // 5: 4 + 2 x 11 + 5 = 31): the start holds, and the answers stay on the route's start (the band, radius
   // 40, never holds 140). Frames 20-34, on the route again: its own keyframes (on frames 20 to 23, the
-  // check over, the newest 8 frames, mostly beside the route, still contradict the track: published lost,
-  // recentCheck, until they no longer end at the look-alike; the answer is the look-alike's place (measured:
-  // 155, 155, 157, 158), which those frames show better than the track by more than chance does on this map.
-  // On frames 22 and 23 the band already supports the track, but a check that found it contradicted goes on
-  // until the newest frames over the whole map end at the track too: 2 frames lost more than when the band's
-  // support alone ended it, the price of not giving a carried robot back to a look-alike of its old place,
-  // AContradictedTrackIsNotRestoredByItsBandAlone).
+  // check over, recentCheck's window, up to K rows and most of them beside the route, still contradicts the
+  // track: published lost; the answer is the look-alike's place (measured: 155, 155, 157, 158), which those
+  // frames show better than the track by more than chance does on this map. On frames 22 and 23 the newest
+  // 8 frames already support the track in its band, but a check that has found it contradicted goes on until
+  // those frames, over the whole map, end at the track too (on frame 23 half of them are still beside the
+  // route): 2 frames lost more than when the band's support alone ended it, the price of not giving a carried
+  // robot back to a look-alike of its old place, AContradictedTrackIsNotRestoredByItsBandAlone).
   const auto map = syntheticMap(200);
   arl::LocalizerParams params;
   params.ring_buffer_rows = 20;
@@ -2299,11 +2299,11 @@ TEST(Localizer, AContradictedTrackIsNotRestoredByItsBandAlone)
   // then carried 99 on, to 198..237. The check of the newest frames finds the track contradicted (published
   // lost at the new place), and four frames later a look-alike in the band supports the old track's end for
   // a while. That ended the check, and the old place was published, tracking, for 5 frames before the next
-  // contradiction. A check that found the track contradicted now goes on until the newest frames, compared
-  // with the whole map, end at the track too: the old place comes back only where the check's window no
-  // longer contradicts it (here never; on the same frames through localize_offline, whose decoding of the
-  // images differs a little, 3 frames where the new place's margin over the track fell short of its share
-  // of chance, contradiction_margin_share).
+  // contradiction. A check that has found the track contradicted now goes on until the newest frames,
+  // compared with the whole map, end at the track too: the old place comes back only where the check's
+  // window no longer contradicts it (here never; on the same frames through localize_offline, whose decoding
+  // of the images differs a little, 3 frames where the new place's margin over the track fell short of its
+  // share of chance, contradiction_margin_share: the limit allows for those).
   const int first = 894, keyframes = 298;
   arl::Preprocessor preprocessor;
   const auto preprocess = [&preprocessor](const cv::Mat& raw) {
@@ -2338,8 +2338,8 @@ TEST(Localizer, AContradictedTrackIsNotRestoredByItsBandAlone)
   const size_t right_again = marks.find('.', lost_end);
   ASSERT_NE(std::string::npos, right_again) << "the new place was never tracked";
   const long old_place_again = std::count(marks.begin() + lost_end, marks.begin() + right_again, 'x');
-  // measured 0; 5 when the band's support ended the check
-  EXPECT_LE(old_place_again, 2);
+  // measured 0 (3 through localize_offline); 5 when the band's support ended the check
+  EXPECT_LE(old_place_again, 3);
   EXPECT_EQ(std::string(marks.size() - right_again, '.'), marks.substr(right_again));
 }
 
