@@ -513,6 +513,9 @@ private:
   /// Whether the newest relocalization_rows rows of a check's whole-map window (recentCheck), as a path over
   /// the whole map, end at `place` (within the exclusion radius, in runs).
   bool newestRowsEndAt(const CostRingBuffer& check, int place);
+  /// Whether keyframes a and b are one place: within the exclusion radius, counted in runs (copies of one
+  /// view are one run).
+  bool samePlace(int a, int b) const;
   /// The loss detection fired on the track at `track_keyframe`: whether the last relocalization_rows frames
   /// (recent_queries_, this one the newest), compared with the whole map as a sequence, end at another
   /// place (farther than the exclusion radius, in runs) that is confidently better than every other place

@@ -1251,8 +1251,12 @@ bool Localizer::newestRowsEndAt(const CostRingBuffer& check, int place)
     return false;
   const SequenceMatch newest =
       dtw_.match(check, 0, static_cast<int>(map_->size()), rows, false, map_stats_.run.data());
-  return newest.keyframe >= 0 &&
-         std::abs(map_stats_.run[newest.keyframe] - map_stats_.run[place]) <= params_.dtw.exclusion_radius;
+  return newest.keyframe >= 0 && samePlace(newest.keyframe, place);
+}
+
+bool Localizer::samePlace(int a, int b) const
+{
+  return std::abs(map_stats_.run[a] - map_stats_.run[b]) <= params_.dtw.exclusion_radius;
 }
 
 bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, CostRingBuffer* ring)
@@ -1284,8 +1288,7 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   contradiction_beats_chance_ = false;
   if (elsewhere.keyframe < 0)
     return false;
-  const bool at_track =
-      std::abs(map_stats_.run[elsewhere.keyframe] - map_stats_.run[track_keyframe]) <= params_.dtw.exclusion_radius;
+  const bool at_track = samePlace(elsewhere.keyframe, track_keyframe);
   if (state_ == State::kCoasting)
   {
     // Evidence placing the robot where it can be is no contradiction: the dead reckoning moves there. The
@@ -1479,7 +1482,7 @@ bool Localizer::startRefuted(const SequenceMatch& track, bool informative, Seque
     return false;
   confirmation_.clear();
   // Confirmed at the track's place (copies of one view count as one place): the start holds.
-  if (std::abs(map_stats_.run[elsewhere->keyframe] - map_stats_.run[track.keyframe]) <= params_.dtw.exclusion_radius)
+  if (samePlace(elsewhere->keyframe, track.keyframe))
     return false;
   // The start is prior knowledge: another place refutes it only when the images showed that place from the
   // check's first answer on (the robot could have driven from there to here). A robot started elsewhere is
