@@ -362,7 +362,7 @@ public:
   /// that searched the whole map (initializing, lost).
   const std::vector<int>& lastPath() const { return last_path_; }
   /// The robot's cruise speed in keyframes per frame (cruise_speed_frames): 1 until a track is followed.
-  double cruiseSpeed() const { return cruise_speed_; }
+  double cruiseSpeed() const { return cruise_.speed; }
   /// Frames processed since construction or reset().
   uint64_t frameCount() const { return frames_; }
   /// Median textureEnergy of the map's keyframes, and the featureless threshold derived from it.
@@ -640,10 +640,13 @@ private:
   int start_first_answer_ = -1;          // the global search's first answer during the start's check (-1: none yet)
   int start_first_answer_row_ = 0;       // rows_since_start_ at that answer
   int tracked_frames_ = 0;               // frames answered since tracking last started
-  double cruise_speed_ = 1.0;            // keyframes per frame: the mean of cruise_samples_ samples
-  int cruise_samples_ = 1;               // the nominal speed counts as the first
-  double confirmed_cruise_speed_ = 1.0;  // cruise_speed_ at the last confident answer (Frame::borne_out)
-  int confirmed_cruise_samples_ = 1;
+  struct CruiseSpeed
+  {
+    double speed = 1.0;  // keyframes per frame: the mean of `samples` samples
+    int samples = 1;     // the nominal speed counts as the first
+  };
+  CruiseSpeed cruise_;
+  CruiseSpeed confirmed_cruise_;         // cruise_ at the last confident answer (Frame::borne_out)
   GlobalConfirmation confirmation_;
   LossDetector loss_;
   FrameClock clock_;

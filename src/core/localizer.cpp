@@ -388,8 +388,7 @@ void Localizer::reset()
   run_position_ = -1.0;
   reckon_position_ = -1.0;
   tracked_frames_ = 0;
-  cruise_speed_ = confirmed_cruise_speed_ = 1.0;
-  cruise_samples_ = confirmed_cruise_samples_ = 1;
+  cruise_ = confirmed_cruise_ = CruiseSpeed();
   recent_count_ = recent_next_ = 0;
   clock_.forgetLastStamp();
   start();
@@ -699,10 +698,7 @@ LocalizationResult Localizer::step(const uint8_t* query, float energy)
   if (state_ == State::kTracking || state_ == State::kCoasting)
     followTrack(frame, match.keyframe);
   if (frame.borne_out)
-  {
-    confirmed_cruise_speed_ = cruise_speed_;
-    confirmed_cruise_samples_ = cruise_samples_;
-  }
+    confirmed_cruise_ = cruise_;
   updatePosterior();
   // The frame that moved the track to a confirmed place: that place's confidence, from the check that
   // confirmed it, not the old track's.
@@ -845,7 +841,7 @@ SequenceMatch Localizer::matchSequence(const Frame& frame)
       prior = motionPrior(frame.repeated);
     }
     if (params_.cruise_speed_frames > 0)
-      dtw_.setParams(cruiseSpeedTieBreak(params_.dtw, cruise_speed_));
+      dtw_.setParams(cruiseSpeedTieBreak(params_.dtw, cruise_.speed));
     // The path is backtracked while tracking only (keyframeThroughRun needs its speed): on a global search
     // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
     // A known start while its frame is in the window (the oldest row: the ring was empty at the start):
@@ -1073,8 +1069,8 @@ void Localizer::followTrack(const Frame& frame, int keyframe)
       params_.cruise_speed_frames > 0)
   {
     const double step = std::min(std::max(keyframe - last_match_, 0), params_.dtw.max_step);
-    cruise_samples_ = std::min(cruise_samples_ + 1, params_.cruise_speed_frames);
-    cruise_speed_ += (step - cruise_speed_) / cruise_samples_;
+    cruise_.samples = std::min(cruise_.samples + 1, params_.cruise_speed_frames);
+    cruise_.speed += (step - cruise_.speed) / cruise_.samples;
   }
   ++tracked_frames_;
   last_match_ = keyframe;
@@ -1183,8 +1179,7 @@ void Localizer::transition(State next, int place)
       last_match_ = place;
       // The steps of a track the images did not bear out (followed since its last confident answer, or a
       // known start the check refuted) were not the robot's: its speed is what it was at that answer.
-      cruise_speed_ = confirmed_cruise_speed_;
-      cruise_samples_ = confirmed_cruise_samples_;
+      cruise_ = confirmed_cruise_;
       last_confident_ = -1;
       frames_since_confident_ = 0;
       lost_position_ = lost_anchor_ = -1.0;
@@ -1224,7 +1219,7 @@ double Localizer::reckonedAhead(double position, double frames) const
 
 double Localizer::coastSpeed() const
 {
-  return std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, cruise_speed_));
+  return std::min(static_cast<double>(params_.dtw.max_step), std::max(0.0, cruise_.speed));
 }
 
 void Localizer::loseTrack(double track_position)
