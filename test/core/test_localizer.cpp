@@ -46,22 +46,29 @@ cv::Mat shiftedRight(const cv::Mat& image, int d)
   return shifted;
 }
 
-// Preprocessed Nordland frames 1000..1299 of one season (default parameters), loaded once.
+// Preprocessed Nordland frames first..first + count - 1 of one season (default parameters; a frame that
+// did not load stays empty).
+std::vector<cv::Mat> preprocessedFrames(const std::string& season, int first, int count)
+{
+  arl::Preprocessor preprocessor;
+  std::vector<cv::Mat> frames;
+  for (const cv::Mat& raw : nordland::loadFrames(season, first, count))
+  {
+    cv::Mat out;
+    if (!raw.empty())
+      preprocessor.process(raw, arl::PixelFormat::kBgr8, out);
+    frames.push_back(out);
+  }
+  return frames;
+}
+
+// Preprocessed Nordland frames 1000..1299 of one season, loaded once.
 const std::vector<cv::Mat>& preprocessedStretch(const std::string& season)
 {
   static std::vector<cv::Mat> summer, winter;
   std::vector<cv::Mat>& frames = season == "summer" ? summer : winter;
   if (frames.empty())
-  {
-    arl::Preprocessor preprocessor;
-    for (const cv::Mat& raw : nordland::loadFrames(season, 1000, 300))
-    {
-      cv::Mat out;
-      if (!raw.empty())
-        preprocessor.process(raw, arl::PixelFormat::kBgr8, out);
-      frames.push_back(out);
-    }
-  }
+    frames = preprocessedFrames(season, 1000, 300);
   return frames;
 }
 
@@ -2035,19 +2042,6 @@ namespace
 {
 
 // Winter frames [first, first + count) of the whole Nordland line, preprocessed with default parameters.
-std::vector<cv::Mat> preprocessedWinter(int first, int count)
-{
-  arl::Preprocessor preprocessor;
-  std::vector<cv::Mat> frames;
-  for (const cv::Mat& raw : nordland::loadFrames("winter", first, count))
-  {
-    cv::Mat out;
-    preprocessor.process(raw, arl::PixelFormat::kBgr8, out);
-    frames.push_back(out);
-  }
-  return frames;
-}
-
 std::shared_ptr<arl::RouteMap> summerStretchMap()
 {
   auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
@@ -2220,7 +2214,7 @@ std::vector<QueryFrame> offRouteQueries()
   std::vector<QueryFrame> queries;
   appendStretch(&queries, 20, 80);
   // 60 frames of another part of the line (frames 400..459), not in the map
-  for (const cv::Mat& frame : preprocessedWinter(400, 60))
+  for (const cv::Mat& frame : preprocessedFrames("winter", 400, 60))
     queries.push_back({ frame, -1 });
   appendStretch(&queries, 160, 80);  // back on the route at keyframe 160
   return queries;
@@ -2305,17 +2299,11 @@ TEST(Localizer, AContradictedTrackIsNotRestoredByItsBandAlone)
   // of the images differs a little, 3 frames where the new place's margin over the track fell short of its
   // share of chance, contradiction_margin_share: the limit allows for those).
   const int first = 894, keyframes = 298;
-  arl::Preprocessor preprocessor;
-  const auto preprocess = [&preprocessor](const cv::Mat& raw) {
-    cv::Mat out;
-    preprocessor.process(raw, arl::PixelFormat::kBgr8, out);
-    return out;
-  };
   auto map = std::make_shared<arl::RouteMap>(arl::PreprocessingParams());
-  const std::vector<cv::Mat> summer = nordland::loadFrames("summer", first, keyframes);
+  const std::vector<cv::Mat> summer = preprocessedFrames("summer", first, keyframes);
   for (size_t k = 0; k < summer.size(); ++k)
-    map->addKeyframe(preprocess(summer[k]), 1000000000LL * static_cast<int64_t>(k));
-  const std::vector<cv::Mat> winter = nordland::loadFrames("winter", first, keyframes);
+    map->addKeyframe(summer[k], 1000000000LL * static_cast<int64_t>(k));
+  const std::vector<cv::Mat> winter = preprocessedFrames("winter", first, keyframes);
   std::vector<int> truth;
   for (int k = 0; k < 99; ++k)
     truth.push_back(k);
@@ -2325,7 +2313,7 @@ TEST(Localizer, AContradictedTrackIsNotRestoredByItsBandAlone)
   std::string marks;
   for (const int k : truth)
   {
-    const arl::LocalizationResult r = localizer.process(preprocess(winter[k]));
+    const arl::LocalizationResult r = localizer.process(winter[k]);
     const bool right = std::abs(r.keyframe - k) <= 1;
     marks += r.status == LocalizationStatus::kLost ? 'l' : (right ? '.' : 'x');
   }
