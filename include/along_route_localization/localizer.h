@@ -160,8 +160,8 @@ struct LocalizerParams
   /// (calibratedConfidence; a logistic fit, Platt scaling). scripts/cross_validate fits both on real
   /// frames, reports the calibration error on folds the fit did not see, and prints the fit for a route
   /// of your own. calibration_slope 0: publish c itself. A lost track's answer has 0. Both dimensionless.
-  float calibration_offset = 0.070f;
-  float calibration_slope = 5.169f;
+  float calibration_offset = 0.143f;
+  float calibration_slope = 5.113f;
   /// Step 5, the confidence a probability: with posterior_confidence (the default) c above is not the DTW's
   /// margin but the mass within one keyframe of the answer of a forward filter over the route
   /// (RoutePosterior, route_posterior.h), fed with each frame's energy-normalized costs over the keyframes
@@ -192,7 +192,7 @@ struct LocalizerParams
   /// Another place contradicts the track (a check while tracking, or while coasting) only when its
   /// sequence also beats the track's end by more than this share of chanceMargin (a wrong stretch's margin
   /// over another on this map, measured on load); 0: by its place confidence alone.
-  double contradiction_margin_share = 0.6;
+  double contradiction_margin_share = 0.75;
   int end_of_route_keyframes = 2;     ///< a match this close to the last keyframe reports kEndOfRoute
   /// A gap in the frames' stamps (FrameClock) is frames the camera missed: they go through skipFrames
   /// before the frame after the gap. Off for a camera triggered by distance travelled, whose gaps are stops.
@@ -441,7 +441,8 @@ private:
   void coastStep(Frame* frame, SequenceMatch* match, bool check_started);
   /// kTracking, on a new view: when the newest relocalization_rows rows alone do not support the track's end
   /// (its confidence over them below confidence_threshold), they are compared with the whole map
-  /// (trackContradicted), and so is each new view while the check goes on (its window growing to K rows);
+  /// (trackContradicted), and so is each new view while the check goes on: over the check's own frames (at
+  /// least relocalization_rows) and over every frame it holds (its window growing to K rows);
   /// once init_confirm_frames such checks in a row found the same place moving as the
   /// robot can, the track moves there (moveTrackOnConfirmation). The whole window, K rows, lags K / 2 frames behind a
   /// robot that was carried elsewhere; its newest rows do not. The newest rows' support ends a check, but one
@@ -516,22 +517,23 @@ private:
   /// Whether keyframes a and b are one place: within the exclusion radius, counted in runs (copies of one
   /// view are one run).
   bool samePlace(int a, int b) const;
-  /// The loss detection fired on the track at `track_keyframe`: whether the last relocalization_rows frames
-  /// (recent_queries_, this one the newest), compared with the whole map as a sequence, end at another
+  /// A check of the track at `track_keyframe` (recentCheck, coastStep): whether the newest `rows` rows of the
+  /// check's whole-map window (extendCheck), compared with the whole map as a sequence, end at another
   /// place (farther than the exclusion radius, in runs) that is confidently better than every other place
   /// and than the track's end ([track - exclusion_radius, track + max_step + max_jump_ahead]) by a margin
   /// mapping to at least confidence_threshold (matchConfidence, the evidence being the distinct views
-  /// among those rows over their number). Weak evidence (no place stands out) is not contrary evidence.
+  /// among those rows over K). Weak evidence (no place stands out) is not contrary evidence.
   /// While coasting, a sequence that ends next to the dead-reckoned keyframe (within the exclusion radius),
   /// or where the robot can have driven since the last confident answer (forward, at most max_step a frame,
   /// give or take the exclusion radius) and beats the dead-reckoned end ([reckoned - exclusion_radius,
   /// reckoned + exclusion_radius]) by more than chanceMargin, is no contradiction: the images place it there,
   /// and coast_fix_ says where (coastStep moves the dead reckoning to it).
-  /// new_rows: the check goes on, the newest new_rows frames (those since its last row) are new; 0: it
-  /// starts afresh.
-  /// The rows weighed: the newest `window` recent queries' whole-map rows, kept in `ring` (coasting: K rows in
-  /// check_ring_; recentCheck: K rows in recent_ring_, the check's window growing to them).
-  bool trackContradicted(int track_keyframe, int new_rows, int window, CostRingBuffer* ring);
+  /// The rows weighed: the newest `rows` of `ring` (extendCheck).
+  bool trackContradicted(int track_keyframe, const CostRingBuffer& ring, int rows);
+  /// A check's whole-map rows of the newest `window` recent queries, kept in `ring` (coasting: K rows in
+  /// check_ring_; recentCheck: K rows in recent_ring_, the check's window growing to them). new_rows: the
+  /// check goes on, the newest new_rows frames (those since its last row) are new; 0: it starts afresh.
+  void extendCheck(int new_rows, int window, CostRingBuffer* ring);
   /// The keyframes a robot that only moves as it drives (detect_kidnapping false) can be at `frames` frames
   /// after the images placed it at `anchor` (a lost track's last answer; coasting: the last confident one):
   /// [*first, *first + *width). The ends of the match after a loss and of the checks while coasting.
@@ -669,6 +671,7 @@ private:
   int recent_unanswered_ = 0;              // checks in a row that found no place elsewhere
   bool recent_found_contradiction_ = false;  // the check under way has found the track contradicted
   int recent_pending_ = 0;                 // frames since the check's last row (featureless, repeated, missed)
+  int recent_own_rows_ = 0;                // rows since the check under way began, its first frame's included
   int check_pending_ = 0;                  // missed frames since the coasting check's last row
   GlobalConfirmation recent_confirmation_; // of those checks: another place, confirmed
   CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries

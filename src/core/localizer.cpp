@@ -993,8 +993,18 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   }
   // Contradicted: published lost (at the place that contradicts, confidence 0; publish) until the checks
   // confirm that place and the track moves there.
-  frame->contradicted =
-      trackContradicted(match->keyframe, recent_checking_ ? 1 + recent_pending_ : 0, check_window, &recent_ring_);
+  // Which of the frames held came after a carry is not known: another place contradicts the track over the
+  // check's own frames (the newest `rows` until it has that many, then every frame since its first) or over
+  // every frame the check holds (up to K), each against the chance margin of its own length. Weighed over all
+  // of them alone, the rows from before the check's first frame, the old place's when the robot was carried
+  // just before, held the new place back (1-6 frames a carry; doc/evaluation_history.md, thirty-first round);
+  // over its own frames alone, a carry some frames before the check began was found later.
+  extendCheck(recent_checking_ ? 1 + recent_pending_ : 0, check_window, &recent_ring_);
+  recent_own_rows_ = recent_checking_ ? recent_own_rows_ + 1 + recent_pending_ : 1;
+  const int own_rows = std::min(recent_ring_.size(), std::max(rows, recent_own_rows_));
+  frame->contradicted = trackContradicted(match->keyframe, recent_ring_, own_rows) ||
+                        (recent_ring_.size() > own_rows &&
+                         trackContradicted(match->keyframe, recent_ring_, recent_ring_.size()));
   recent_found_contradiction_ = (recent_checking_ && recent_found_contradiction_) || frame->contradicted;
   // A check that has found the track contradicted goes on while the band supports the track, until the
   // newest rows alone, compared with the whole map, end at the track too (or the checks confirm the other
@@ -1024,9 +1034,9 @@ void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started
     // checks in a row were contradicted by places that move along the route like the robot can (a
     // single check's winner is a wrong place now and then).
     // The check's window grows to K rows, as a global search's.
-    frame->contradicted = trackContradicted(static_cast<int>(std::lround(coast_position_)),
-                                            check_started ? 0 : 1 + check_pending_, params_.ring_buffer_rows,
-                                            &check_ring_);
+    extendCheck(check_started ? 0 : 1 + check_pending_, params_.ring_buffer_rows, &check_ring_);
+    frame->contradicted =
+        trackContradicted(static_cast<int>(std::lround(coast_position_)), check_ring_, check_ring_.size());
     check_pending_ = 0;
     if (moveTrackOnConfirmation(&check_confirmation_, frame->informative, check_ring_, frame, match))
       return;
@@ -1254,12 +1264,11 @@ bool Localizer::samePlace(int a, int b) const
   return std::abs(map_stats_.run[a] - map_stats_.run[b]) <= params_.dtw.exclusion_radius;
 }
 
-bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, CostRingBuffer* ring)
+void Localizer::extendCheck(int new_rows, int window, CostRingBuffer* ring)
 {
   const int n = static_cast<int>(map_->size());
-  coast_fix_ = -1;
   if (recent_count_ < 1)
-    return false;  // nothing to weigh
+    return;  // nothing to weigh
   if (new_rows > 0 && new_rows < window && new_rows <= recent_count_ && ring->size() > 0 &&
       ring->capacity() == window && ring->maxWidth() == n)
   {
@@ -1272,13 +1281,21 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
     ring->clear();
     replayRecentQueries(std::min(recent_count_, window), ring);
   }
-  const int rows = ring->size();
+}
+
+bool Localizer::trackContradicted(int track_keyframe, const CostRingBuffer& ring, int rows)
+{
+  const int n = static_cast<int>(map_->size());
+  coast_fix_ = -1;
+  rows = std::min(rows, ring.size());
+  if (recent_count_ < 1 || rows < 1)
+    return false;  // nothing to weigh
   // A robot that only moves as it drives (detect_kidnapping false; coasting: the newest rows' check is
   // off) is contradicted only by a place it could have driven to since the last confident answer.
   int first = 0, width = n;
   if (!params_.detect_kidnapping && last_confident_ >= 0)
     reachableEnds(last_confident_, frames_since_confident_, &first, &width);
-  const SequenceMatch elsewhere = dtw_.match(*ring, first, width, rows, false, map_stats_.run.data());
+  const SequenceMatch elsewhere = dtw_.match(ring, first, width, rows, false, map_stats_.run.data());
   contradicting_place_ = elsewhere.keyframe;
   contradiction_beats_chance_ = false;
   if (elsewhere.keyframe < 0)
@@ -1309,7 +1326,7 @@ bool Localizer::trackContradicted(int track_keyframe, int new_rows, int window, 
   // few the check's window holds (weighed by its own 8 rows, the check while tracking moved the track to
   // look-alike places of the synthetic routes: seed 4, within one 1.000 -> 0.787).
   const double evidence =
-      std::min(1.0, static_cast<double>(ring->distinctViews(elsewhere.rows)) / std::max(1, params_.ring_buffer_rows));
+      std::min(1.0, static_cast<double>(ring.distinctViews(elsewhere.rows)) / std::max(1, params_.ring_buffer_rows));
   contradicting_confidence_ = matchConfidence(elsewhere, false, evidence);
   if (matchConfidence(elsewhere, true, evidence) < params_.confidence_threshold)
     return false;  // no place stands out: weak evidence
