@@ -2917,9 +2917,10 @@ TEST(Localizer, WhileCoastingAnotherPlaceContradictsTheTrackByMoreThanItsShareOf
   // (90-60 % its own): a place it cannot have driven to since keyframe 59, so only evidence for it moves the
   // estimate there. On the map of distinct views the shares find it alike, 5 frames after it shows; on the
   // map with a stretch seen twice the default share, 0.75, contradicts the old place after 16-18 frames
-  // (against 10-12 with 0.6, the default before the thirty-first round, and 4 with share 0; answered right from
-  // frame 92 at the latest), the whole chance margin (share 1) not in 40 frames. Checking the share only while tracking, every share found it as share 0 does (measured with the
-  // coasting checks' margin test left out).
+  // (against 10-12 with 0.6, the default before the thirty-first round, and 4 with share 0; answered right
+  // from frame 92 at the latest), the whole chance margin (share 1) not in 40 frames. Checking the share only
+  // while tracking, every share found it as share 0 does (measured with the coasting checks' margin test left
+  // out).
   for (const bool repeat : { false, true })
   {
     const auto map = mapWithAStretchSeenTwice(repeat);
@@ -2966,7 +2967,8 @@ TEST(Localizer, WhileCoastingAnotherPlaceContradictsTheTrackByMoreThanItsShareOf
       const size_t found_by = repeat && share > 0.0 ? 92 : 79;
       if (repeat && share > 0.0)
       {
-        EXPECT_EQ(std::string(10, 'x'), marks.substr(70, 10)) << label << ": at least 10 frames at the old place (share 0: 4)";
+        EXPECT_EQ(std::string(10, 'x'), marks.substr(70, 10))
+            << label << ": at least 10 frames at the old place (share 0: 4)";
       }
       EXPECT_NE(std::string::npos, marks.find('l', 70)) << label;
       EXPECT_EQ(std::string(110 - found_by, '.'), marks.substr(found_by)) << label;
