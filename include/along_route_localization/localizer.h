@@ -531,7 +531,7 @@ private:
   /// The rows weighed: the newest `rows` of `ring` (extendCheck).
   bool trackContradicted(int track_keyframe, const CostRingBuffer& ring, int rows);
   /// A check's whole-map rows of the newest `window` recent queries, kept in `ring` (coasting: K rows in
-  /// check_ring_; recentCheck: K rows in recent_ring_, the check's window growing to them). new_rows: the
+  /// check_ring_; recentCheck: K rows in newest_check_.ring, the check's window growing to them). new_rows: the
   /// check goes on, the newest new_rows frames (those since its last row) are new; 0: it starts afresh.
   void extendCheck(int new_rows, int window, CostRingBuffer* ring);
   /// The keyframes a robot that only moves as it drives (detect_kidnapping false) can be at `frames` frames
@@ -665,15 +665,24 @@ private:
   };
   std::vector<RecentQuery> recent_queries_;
   int recent_count_ = 0, recent_next_ = 0;
-  CostRingBuffer recent_ring_;             // recentCheck's whole-map rows of the newest queries
-  bool recent_checking_ = false;           // the last new view was checked against the whole map
-  bool recent_contradicted_ = false;       // and that check found the track contradicted
-  int recent_unanswered_ = 0;              // checks in a row that found no place elsewhere
-  bool recent_found_contradiction_ = false;  // the check under way has found the track contradicted
-  int recent_pending_ = 0;                 // frames since the check's last row (featureless, repeated, missed)
-  int recent_own_rows_ = 0;                // rows since the check under way began, its first frame's included
+  /// recentCheck's state: a check of the newest frames against the whole map, under way from the first new
+  /// view whose newest frames do not support the track until they do again, it moves the track, or as many
+  /// checks as the window has rows found no place elsewhere. end() leaves nothing of it set: called when it
+  /// ends and on every change of state (transition, start).
+  struct NewestFramesCheck
+  {
+    CostRingBuffer ring;               // whole-map rows of the newest queries (its window: extendCheck)
+    bool under_way = false;            // the last new view was checked against the whole map
+    bool contradicted = false;         // and that check found the track contradicted
+    bool found_contradiction = false;  // some check since it began found the track contradicted
+    int unanswered = 0;                // checks in a row that found no place elsewhere
+    int pending = 0;                   // frames since its last row (featureless, repeated, missed)
+    int own_rows = 0;                  // rows since it began, its first frame's included
+    GlobalConfirmation confirmation;   // its verdicts: another place, confirmed
+    void end();
+  };
+  NewestFramesCheck newest_check_;
   int check_pending_ = 0;                  // missed frames since the coasting check's last row
-  GlobalConfirmation recent_confirmation_; // of those checks: another place, confirmed
   CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
   int contradicting_place_ = -1;         // the place the last trackContradicted found
   bool contradiction_beats_chance_ = false;  // ... by more than contradiction_margin_share of chanceMargin

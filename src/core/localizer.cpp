@@ -196,9 +196,8 @@ void Localizer::start()
   start_check_ = false;
   rows_since_start_ = views_since_start_ = 0;
   start_first_answer_ = -1;
-  recent_checking_ = recent_contradicted_ = false;
-  recent_unanswered_ = recent_pending_ = check_pending_ = 0;
-  recent_confirmation_.clear();
+  newest_check_.end();
+  check_pending_ = 0;
   const bool known_start = params_.start_keyframe >= 0 && params_.method == SequenceMethod::kOnlineDtw;
   posterior_.reset(static_cast<int>(map_->size()), known_start ? params_.start_keyframe : -1);
   if (!known_start)
@@ -232,7 +231,7 @@ void Localizer::setParams(const LocalizerParams& params)
   posterior_.setParams(posterior);
   confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
   check_confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
-  recent_confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
+  newest_check_.confirmation.configure(params_.init_confirm_frames, params_.dtw.max_step);
   loss_.configure(params_.lost_after_frames, params_.lost_window_frames);
   const int rows = std::max(params_.ring_buffer_rows,
                             params_.method == SequenceMethod::kSeqSlam ? params_.seqslam.sequence_length : 0);
@@ -943,23 +942,31 @@ void Localizer::trackStep(Frame* frame, SequenceMatch* match, bool confident)
     recentCheck(frame, match);
 }
 
+void Localizer::NewestFramesCheck::end()
+{
+  under_way = contradicted = found_contradiction = false;
+  unanswered = pending = own_rows = 0;
+  confirmation.clear();
+}
+
 void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
 {
+  NewestFramesCheck& check = newest_check_;
   const int rows = std::min(params_.relocalization_rows, params_.ring_buffer_rows);
   if (rows <= 0 || !params_.detect_kidnapping || params_.method != SequenceMethod::kOnlineDtw || frame->global ||
       frame->checking_start || ring_.size() < rows || recent_count_ < rows)
   {
-    recent_checking_ = false;  // off, or the start's own check is on, or too few rows to weigh
+    check.under_way = false;  // off, or the start's own check is on, or too few rows to weigh
     return;
   }
   if (!frame->informative || frame->repeated)
   {
     // No new view to weigh. A check under way takes this frame's row (neutral when featureless) with the
     // next new view's, so that its rows stay those of consecutive frames.
-    if (recent_checking_)
+    if (check.under_way)
     {
-      ++recent_pending_;
-      frame->contradicted = recent_contradicted_;  // no new view, no new evidence: the last verdict stands
+      ++check.pending;
+      frame->contradicted = check.contradicted;  // no new view, no new evidence: the last verdict stands
     }
     return;
   }
@@ -967,15 +974,10 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   // the robot was carried elsewhere. Supported, the check ends, unless it has found the track contradicted:
   // the band holds only the track's neighbourhood, where a look-alike can support the track by chance while
   // the whole map still holds the place that beats it (below).
-  const auto endCheck = [this]() {
-    recent_checking_ = false;
-    recent_unanswered_ = 0;
-    recent_confirmation_.clear();
-  };
   const bool supported = newestRowsSupport(*frame, match->keyframe);
-  if (supported && !(recent_checking_ && recent_found_contradiction_))
+  if (supported && !(check.under_way && check.found_contradiction))
   {
-    endCheck();
+    check.end();
     return;
   }
   // The check's window starts with the newest `rows` frames and grows by each frame it goes on for, up to K
@@ -984,11 +986,11 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   // after `rows` frames where the place came out just short of confident, and the track stayed on the old
   // place until the whole window gave it up (kidnapped from the route's end: 57 frames).
   const int check_window = params_.ring_buffer_rows;
-  if (recent_unanswered_ >= check_window)
+  if (check.unanswered >= check_window)
   {
     // As many checks as the window has rows found no place elsewhere: every row now in it came after the
     // first unsupported one, so weak evidence, not another place. Checked again once the track is supported.
-    recent_checking_ = false;
+    check.under_way = false;
     return;
   }
   // Contradicted: published lost (at the place that contradicts, confidence 0; publish) until the checks
@@ -999,29 +1001,29 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   // of them alone, the rows from before the check's first frame, the old place's when the robot was carried
   // just before, held the new place back (1-6 frames a carry; doc/evaluation_history.md, thirty-first round);
   // over its own frames alone, a carry some frames before the check began was found later.
-  extendCheck(recent_checking_ ? 1 + recent_pending_ : 0, check_window, &recent_ring_);
-  recent_own_rows_ = recent_checking_ ? recent_own_rows_ + 1 + recent_pending_ : 1;
-  const int own_rows = std::min(recent_ring_.size(), std::max(rows, recent_own_rows_));
-  frame->contradicted = trackContradicted(match->keyframe, recent_ring_, own_rows) ||
-                        (recent_ring_.size() > own_rows &&
-                         trackContradicted(match->keyframe, recent_ring_, recent_ring_.size()));
-  recent_found_contradiction_ = (recent_checking_ && recent_found_contradiction_) || frame->contradicted;
+  extendCheck(check.under_way ? 1 + check.pending : 0, check_window, &check.ring);
+  check.own_rows = check.under_way ? check.own_rows + 1 + check.pending : 1;
+  const int own_rows = std::min(check.ring.size(), std::max(rows, check.own_rows));
+  frame->contradicted = trackContradicted(match->keyframe, check.ring, own_rows) ||
+                        (check.ring.size() > own_rows &&
+                         trackContradicted(match->keyframe, check.ring, check.ring.size()));
+  check.found_contradiction = (check.under_way && check.found_contradiction) || frame->contradicted;
   // A check that has found the track contradicted goes on while the band supports the track, until the
   // newest rows alone, compared with the whole map, end at the track too (or the checks confirm the other
   // place, or as many checks as the window has rows found none: above). Ended on the band's support alone, it
   // gave a carried robot back to the old place between two lost runs, and the next check started afresh
   // from the newest rows (kidnapped, fold 4: 5 frames in the gtest AContradictedTrackIsNotRestoredByItsBandAlone).
-  if (supported && newestRowsEndAt(recent_ring_, match->keyframe))
+  if (supported && newestRowsEndAt(check.ring, match->keyframe))
   {
     frame->contradicted = false;
-    endCheck();
+    check.end();
     return;
   }
-  recent_checking_ = true;
-  recent_contradicted_ = frame->contradicted;
-  recent_pending_ = 0;
-  recent_unanswered_ = frame->contradicted ? 0 : recent_unanswered_ + 1;
-  moveTrackOnConfirmation(&recent_confirmation_, true, recent_ring_, frame, match);
+  check.under_way = true;
+  check.contradicted = frame->contradicted;
+  check.pending = 0;
+  check.unanswered = frame->contradicted ? 0 : check.unanswered + 1;
+  moveTrackOnConfirmation(&check.confirmation, true, check.ring, frame, match);
 }
 
 
@@ -1174,9 +1176,8 @@ void Localizer::transition(State next, int place)
 {
   // Every change of state_ but the initial one (start()) comes here; what each state needs on entry:
   state_ = next;
-  recent_checking_ = recent_contradicted_ = false;  // recentCheck starts afresh in any new state
-  recent_unanswered_ = recent_pending_ = check_pending_ = 0;
-  recent_confirmation_.clear();
+  newest_check_.end();  // recentCheck starts afresh in any new state
+  check_pending_ = 0;
   switch (next)
   {
     case State::kInitializing:  // the baseline after a gap (skipFrames, which clears the window)
