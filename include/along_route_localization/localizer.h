@@ -437,7 +437,7 @@ private:
   /// kTracking, kCoasting: loss detection; lost, or coasting (loss_needs_contradiction), or on.
   void trackStep(Frame* frame, SequenceMatch* match, bool confident);
   /// kCoasting: the check for another place (trackContradicted), confirmed -> moveTrackOnConfirmation; else the answer
-  /// is the dead-reckoned coast_position_.
+  /// is the dead-reckoned coasting_.position.
   void coastStep(Frame* frame, SequenceMatch* match, bool check_started);
   /// kTracking, on a new view: when the newest relocalization_rows rows alone do not support the track's end
   /// (its confidence over them below confidence_threshold), they are compared with the whole map
@@ -531,7 +531,7 @@ private:
   /// The rows weighed: the newest `rows` of `ring` (extendCheck).
   bool trackContradicted(int track_keyframe, const CostRingBuffer& ring, int rows);
   /// A check's whole-map rows of the newest `window` recent queries, kept in `ring` (coasting: K rows in
-  /// check_ring_; recentCheck: K rows in newest_check_.ring, the check's window growing to them). new_rows: the
+  /// coasting_.ring; recentCheck: K rows in newest_check_.ring, the check's window growing to them). new_rows: the
   /// check goes on, the newest new_rows frames (those since its last row) are new; 0: it starts afresh.
   void extendCheck(int new_rows, int window, CostRingBuffer* ring);
   /// The keyframes a robot that only moves as it drives (detect_kidnapping false) can be at `frames` frames
@@ -682,14 +682,21 @@ private:
     void end();
   };
   NewestFramesCheck newest_check_;
-  int check_pending_ = 0;                  // missed frames since the coasting check's last row
-  CostRingBuffer check_ring_;            // trackContradicted's whole-map rows of the recent queries
+  /// kCoasting's own state, set on entering it (begin, from transition) and used only while in it: the
+  /// dead reckoning and its check of the recent frames against the whole map (coastStep).
+  struct Coasting
+  {
+    double position = 0.0;             // the dead-reckoned keyframe
+    CostRingBuffer ring;               // the check's whole-map rows of the recent queries
+    int pending = 0;                   // missed frames since the check's last row
+    GlobalConfirmation confirmation;   // the checks' verdicts: another place, confirmed
+    void begin(double from);
+  };
+  Coasting coasting_;
   int contradicting_place_ = -1;         // the place the last trackContradicted found
   bool contradiction_beats_chance_ = false;  // ... by more than contradiction_margin_share of chanceMargin
   double contradicting_confidence_ = 0.0;  // its margin confidence (matchConfidence, before calibration)
-  GlobalConfirmation check_confirmation_;  // of the checks while coasting: another place, confirmed
-  double coast_position_ = 0.0;          // kCoasting: the dead-reckoned keyframe
-  int coast_fix_ = -1;                   // kCoasting: where the last check placed the robot instead (or -1)
+  int coast_fix_ = -1;                   // where the last trackContradicted placed the robot instead (or -1)
   int last_confident_ = -1;              // the last confident, informative answer while tracking
   int frames_since_confident_ = 0;
   double lost_position_ = -1.0;          // dead-reckoned keyframe while lost (< 0: none, no track to go on)

@@ -197,7 +197,6 @@ void Localizer::start()
   rows_since_start_ = views_since_start_ = 0;
   start_first_answer_ = -1;
   newest_check_.end();
-  check_pending_ = 0;
   const bool known_start = params_.start_keyframe >= 0 && params_.method == SequenceMethod::kOnlineDtw;
   posterior_.reset(static_cast<int>(map_->size()), known_start ? params_.start_keyframe : -1);
   if (!known_start)
@@ -230,7 +229,7 @@ void Localizer::setParams(const LocalizerParams& params)
   posterior.max_step = params_.dtw.max_step;
   posterior_.setParams(posterior);
   confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
-  check_confirmation_.configure(params_.init_confirm_frames, params_.dtw.max_step);
+  coasting_.confirmation.configure(params_.init_confirm_frames, params_.dtw.max_step);
   newest_check_.confirmation.configure(params_.init_confirm_frames, params_.dtw.max_step);
   loss_.configure(params_.lost_after_frames, params_.lost_window_frames);
   const int rows = std::max(params_.ring_buffer_rows,
@@ -1027,6 +1026,13 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
 }
 
 
+void Localizer::Coasting::begin(double from)
+{
+  position = from;
+  pending = 0;
+  confirmation.clear();  // (the ring: extendCheck starts it afresh on the first frame, check_started)
+}
+
 void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started)
 {
   int placed = -1;  // where this frame's check placed the robot (trackContradicted), if it did
@@ -1036,38 +1042,38 @@ void Localizer::coastStep(Frame* frame, SequenceMatch* match, bool check_started
     // checks in a row were contradicted by places that move along the route like the robot can (a
     // single check's winner is a wrong place now and then).
     // The check's window grows to K rows, as a global search's.
-    extendCheck(check_started ? 0 : 1 + check_pending_, params_.ring_buffer_rows, &check_ring_);
+    extendCheck(check_started ? 0 : 1 + coasting_.pending, params_.ring_buffer_rows, &coasting_.ring);
     frame->contradicted =
-        trackContradicted(static_cast<int>(std::lround(coast_position_)), check_ring_, check_ring_.size());
-    check_pending_ = 0;
-    if (moveTrackOnConfirmation(&check_confirmation_, frame->informative, check_ring_, frame, match))
+        trackContradicted(static_cast<int>(std::lround(coasting_.position)), coasting_.ring, coasting_.ring.size());
+    coasting_.pending = 0;
+    if (moveTrackOnConfirmation(&coasting_.confirmation, frame->informative, coasting_.ring, frame, match))
       return;
     placed = coast_fix_;
   }
   else
   {
-    ++check_pending_;  // a missed frame: no check, but its (featureless) row joins the next one's window
-    check_confirmation_.update(-1, false, false);
+    ++coasting_.pending;  // a missed frame: no check, but its (featureless) row joins the next one's window
+    coasting_.confirmation.update(-1, false, false);
   }
   // Placed by the check: this frame's answer, and the dead reckoning goes on from there. Else a query that
   // repeats the last view: the camera stood still, and so does the dead reckoning.
   if (placed >= 0)
-    coast_position_ = placed;
+    coasting_.position = placed;
   else if (!frame->repeated)
   {
     // Dead reckoning had already reached the last keyframe and the robot still moves on, showing new
     // views: it has left the route's end, and no position along the route is left to coast on (a robot
     // carried elsewhere from the end of the route was otherwise held there, kidnapped fold 3).
-    const bool past_the_end = coast_position_ >= static_cast<double>(map_->size() - 1) && frame->informative &&
+    const bool past_the_end = coasting_.position >= static_cast<double>(map_->size() - 1) && frame->informative &&
                               coastSpeed() > 0.0;
-    coast_position_ = reckonedAhead(coast_position_);
+    coasting_.position = reckonedAhead(coasting_.position);
     if (past_the_end)
     {
-      loseTrack(coast_position_);
+      loseTrack(coasting_.position);
       return;
     }
   }
-  match->keyframe = static_cast<int>(std::lround(coast_position_));
+  match->keyframe = static_cast<int>(std::lround(coasting_.position));
   run_position_ = -1.0;
 }
 
@@ -1177,7 +1183,6 @@ void Localizer::transition(State next, int place)
   // Every change of state_ but the initial one (start()) comes here; what each state needs on entry:
   state_ = next;
   newest_check_.end();  // recentCheck starts afresh in any new state
-  check_pending_ = 0;
   switch (next)
   {
     case State::kInitializing:  // the baseline after a gap (skipFrames, which clears the window)
@@ -1199,13 +1204,11 @@ void Localizer::transition(State next, int place)
       tracked_frames_ = 0;
       start_check_ = false;
       confirmation_.clear();
-      check_confirmation_.clear();
       loss_.clear();
       break;
     case State::kCoasting:
       // Weak evidence: dead reckoning at the cruise speed from the last confident answer.
-      check_confirmation_.clear();
-      coast_position_ = reckonedAhead(last_confident_, frames_since_confident_ - 1);
+      coasting_.begin(reckonedAhead(last_confident_, frames_since_confident_ - 1));
       break;
     case State::kLost:
       ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
