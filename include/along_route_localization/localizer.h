@@ -666,9 +666,11 @@ private:
   std::vector<RecentQuery> recent_queries_;
   int recent_count_ = 0, recent_next_ = 0;
   /// recentCheck's state: a check of the newest frames against the whole map, under way from the first new
-  /// view whose newest frames do not support the track until they do again, it moves the track, or as many
-  /// checks as the window has rows found no place elsewhere. end() leaves nothing of it set: called when it
-  /// ends and on every change of state (transition, start).
+  /// view whose newest frames do not support the track until they do again or it moves the track; end()
+  /// leaves nothing of it set (the ring aside: extendCheck starts it afresh), called then and on every
+  /// change of state (transition, start). After as many checks as the window has rows found no place
+  /// elsewhere it rests instead (under_way false, `unanswered` kept) until the newest frames support the
+  /// track again.
   struct NewestFramesCheck
   {
     CostRingBuffer ring;               // whole-map rows of the newest queries (its window: extendCheck)
@@ -682,8 +684,9 @@ private:
     void end();
   };
   NewestFramesCheck newest_check_;
-  /// kCoasting's own state, set on entering it (begin, from transition) and used only while in it: the
-  /// dead reckoning and its check of the recent frames against the whole map (coastStep).
+  /// kCoasting's own state, set on entering it (begin, from transition; the ring by the first check,
+  /// extendCheck) and used only while in it: the dead reckoning and its check of the recent frames against
+  /// the whole map (coastStep).
   struct Coasting
   {
     double position = 0.0;             // the dead-reckoned keyframe
