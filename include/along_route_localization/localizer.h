@@ -635,12 +635,19 @@ private:
 
   State state_ = State::kInitializing;
   int last_match_ = -1;
-  int start_match_ = -1;                 // the start keyframe of a known start
-  bool start_check_ = false;             // a known start is being checked (startRefuted)
-  int rows_since_start_ = 0;             // rows appended since the known start (0: no frame answered yet)
-  int views_since_start_ = 0;            // of them, informative new views
-  int start_first_answer_ = -1;          // the global search's first answer during the start's check (-1: none yet)
-  int start_first_answer_row_ = 0;       // rows_since_start_ at that answer
+  /// A known start (start_keyframe) and its check (checkStart, startRefuted): set by begin() in start(), the
+  /// check on until K new views have come (beginFrame) or the state changes to another place or to kLost.
+  struct KnownStart
+  {
+    int keyframe = -1;           // the start keyframe
+    bool checking = false;       // the start is being checked
+    int rows = 0;                // rows appended since the start (0: no frame answered yet)
+    int views = 0;               // of them, informative new views
+    int first_answer = -1;       // the global search's first answer during the check (-1: none yet)
+    int first_answer_row = 0;    // `rows` at that answer
+    void begin(int start_keyframe);
+  };
+  KnownStart start_;
   int tracked_frames_ = 0;               // frames answered since tracking last started
   struct CruiseSpeed
   {

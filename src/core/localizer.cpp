@@ -193,17 +193,23 @@ void Localizer::start()
   lost_position_ = lost_anchor_ = -1.0;
   last_confident_ = -1;
   frames_since_confident_ = 0;
-  start_check_ = false;
-  rows_since_start_ = views_since_start_ = 0;
-  start_first_answer_ = -1;
   newest_check_.end();
   const bool known_start = params_.start_keyframe >= 0 && params_.method == SequenceMethod::kOnlineDtw;
-  posterior_.reset(static_cast<int>(map_->size()), known_start ? params_.start_keyframe : -1);
+  start_.begin(known_start ? params_.start_keyframe : -1);
+  posterior_.reset(static_cast<int>(map_->size()), start_.keyframe);
   if (!known_start)
     return;
   state_ = State::kTracking;
-  last_match_ = start_match_ = params_.start_keyframe;
-  start_check_ = true;
+  last_match_ = start_.keyframe;
+}
+
+void Localizer::KnownStart::begin(int start_keyframe)
+{
+  keyframe = start_keyframe;
+  checking = start_keyframe >= 0;
+  rows = views = 0;
+  first_answer = -1;
+  first_answer_row = 0;
 }
 
 void Localizer::setParams(const LocalizerParams& params)
@@ -624,7 +630,7 @@ void Localizer::skipFrames(int count)
     else if (state_ == State::kLost && lost_position_ >= 0.0)  // already lost: its dead reckoning goes on
       lost_position_ = reckonedAhead(lost_position_, count);
     ring_.clear();
-    start_check_ = false;
+    start_.checking = false;
     confirmation_.clear();
     loss_.clear();
     last_path_.clear();
@@ -724,12 +730,12 @@ Localizer::Frame Localizer::beginFrame(const uint8_t* query, float energy)
   // not there, as soon as a global search would have found the place with the start unknown (a robot
   // standing still elsewhere is not confirmed there before it moves on, ConfirmsAPlaceOnDistinctViews...).
   // While the start's own frame is in the window, every path of the track starts at it.
-  frame.checking_start = frame.tracking && params_.method == SequenceMethod::kOnlineDtw && start_check_ &&
-                         views_since_start_ < params_.ring_buffer_rows;
-  frame.first_from_start = start_check_ && rows_since_start_ == 0;  // no frame answered since the start
-  if (start_check_ && !frame.checking_start)
+  frame.checking_start = frame.tracking && params_.method == SequenceMethod::kOnlineDtw && start_.checking &&
+                         start_.views < params_.ring_buffer_rows;
+  frame.first_from_start = start_.checking && start_.rows == 0;  // no frame answered since the start
+  if (start_.checking && !frame.checking_start)
   {
-    start_check_ = false;  // enough views to go on its own
+    start_.checking = false;  // enough views to go on its own
     confirmation_.clear();
   }
   // while tracking: one keyframe per frame (the first frame of a known start: the start keyframe)
@@ -783,8 +789,8 @@ void Localizer::appendRow(const Frame& frame)
              width);
   if (frame.checking_start)
   {
-    ++rows_since_start_;
-    views_since_start_ += query && frame.informative && !frame.repeated ? 1 : 0;
+    ++start_.rows;
+    start_.views += query && frame.informative && !frame.repeated ? 1 : 0;
   }
   // This frame's costs (energy-normalized) over the keyframes it was compared with, for step 5's posterior
   // (updatePosterior); a featureless or missed frame brings no evidence, and the posterior's window follows
@@ -833,7 +839,7 @@ SequenceMatch Localizer::matchSequence(const Frame& frame)
       // frames without evidence (dark, copies of one view, fog) the answer moved on at a speed the images
       // could not check, and may have run ahead of a robot that slowed down. So the new match may also end
       // back at the last confident answer (a known start under check: the start keyframe).
-      const int confirmed = last_confident_ >= 0 ? last_confident_ : (start_check_ ? start_match_ : last_match_);
+      const int confirmed = last_confident_ >= 0 ? last_confident_ : (start_.checking ? start_.keyframe : last_match_);
       first_choice = std::min(last_match_, confirmed) - params_.dtw.exclusion_radius;
       last_choice = last_match_ + params_.dtw.max_step + params_.max_jump_ahead;
       prior = motionPrior(frame.repeated);
@@ -844,8 +850,8 @@ SequenceMatch Localizer::matchSequence(const Frame& frame)
     // it would store rows x N step bytes per state for a path that is only drawn in the debug image.
     // A known start while its frame is in the window (the oldest row: the ring was empty at the start):
     // every path starts there.
-    const bool start_in_window = rows_since_start_ <= std::min(params_.ring_buffer_rows, ring_.size());
-    const int path_start = frame.checking_start && start_in_window ? start_match_ : -1;
+    const bool start_in_window = start_.rows <= std::min(params_.ring_buffer_rows, ring_.size());
+    const int path_start = frame.checking_start && start_in_window ? start_.keyframe : -1;
     match = dtw_.match(ring_, frame.reach_first, frame.reach_width, params_.ring_buffer_rows, !frame.global,
                        map_stats_.run.data(), first_choice, last_choice, prior, path_start);
   }
@@ -1202,7 +1208,7 @@ void Localizer::transition(State next, int place)
       last_path_.clear();
       run_position_ = reckon_position_ = -1.0;
       tracked_frames_ = 0;
-      start_check_ = false;
+      start_.checking = false;
       confirmation_.clear();
       loss_.clear();
       break;
@@ -1212,7 +1218,7 @@ void Localizer::transition(State next, int place)
       break;
     case State::kLost:
       ring_.clear();  // the rows of a lost track cover only its band (or a start's check's, its first frames)
-      start_check_ = false;
+      start_.checking = false;
       confirmation_.clear();
       break;
   }
@@ -1487,10 +1493,10 @@ bool Localizer::startRefuted(const SequenceMatch& track, bool informative, Seque
     return false;
   *elsewhere = dtw_.match(ring_, 0, static_cast<int>(map_->size()), params_.ring_buffer_rows, false,
                           map_stats_.run.data());
-  if (start_first_answer_ < 0 && informative)
+  if (start_.first_answer < 0 && informative)
   {
-    start_first_answer_ = elsewhere->keyframe;
-    start_first_answer_row_ = rows_since_start_;
+    start_.first_answer = elsewhere->keyframe;
+    start_.first_answer_row = start_.rows;
   }
   const bool confirmable =
       matchConfidence(*elsewhere, true, evidenceShare(*elsewhere)) >= params_.confidence_threshold;
@@ -1504,8 +1510,8 @@ bool Localizer::startRefuted(const SequenceMatch& track, bool informative, Seque
   // check's first answer on (the robot could have driven from there to here). A robot started elsewhere is
   // seen there from its first frames; a robot beside its start, still turning onto the route, fits no place
   // well, and the answers go from one look-alike to another before one is confirmed.
-  const int advance = elsewhere->keyframe - start_first_answer_;
-  const int frames = rows_since_start_ - start_first_answer_row_;
+  const int advance = elsewhere->keyframe - start_.first_answer;
+  const int frames = start_.rows - start_.first_answer_row;
   return advance >= -params_.dtw.exclusion_radius &&
          advance <= params_.dtw.max_step * frames + params_.dtw.exclusion_radius;
 }
