@@ -636,7 +636,8 @@ private:
   State state_ = State::kInitializing;
   int last_match_ = -1;
   /// A known start (start_keyframe) and its check (checkStart, startRefuted): set by begin() in start(), the
-  /// check on until K new views have come (beginFrame) or the state changes to another place or to kLost.
+  /// check on until K new views have come (beginFrame), the state changes to another place or to kLost, or a
+  /// gap restarts the search (skipFrames).
   struct KnownStart
   {
     int keyframe = -1;           // the start keyframe
