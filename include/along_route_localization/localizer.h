@@ -280,11 +280,24 @@ struct FrameGapCounts
   uint64_t missed_frames = 0;   ///< frames missed in the gaps that did not restart the search
   uint64_t searched_again = 0;  ///< gaps that restarted the search (FrameGap::kSearchedAgain)
   uint64_t stood_still = 0;     ///< gaps with the same view on both sides (FrameGap::kStoodStill)
+  /// Frames missed in gaps that came while the localizer was still busy with the frame before (a
+  /// parameter change measures the map's tables again): a nodelet's input queue then kept only the newest
+  /// frame, so the camera lost none of them.
+  uint64_t missed_while_busy = 0;
 
-  void add(const LocalizationResult& result)
+  /// Whether a gap of `gap_s` with `missed` frames missed came while the localizer spent `busy_s` on the
+  /// frame before: longer than one frame period, gap_s / (missed + 1), so at least one frame came meanwhile.
+  static bool whileBusy(double busy_s, double gap_s, int missed)
+  {
+    return missed > 0 && gap_s > 0.0 && busy_s * (missed + 1) > gap_s;
+  }
+
+  void add(const LocalizationResult& result, bool while_busy = false)
   {
     if (result.missed_frames <= 0)
       return;
+    if (while_busy && result.gap != FrameGap::kSearchedAgain)
+      missed_while_busy += static_cast<uint64_t>(result.missed_frames);
     ++gaps;
     if (result.gap == FrameGap::kSearchedAgain)
       ++searched_again;

@@ -80,6 +80,10 @@ private:
   };
   /// Counts the frame as dropped for the diagnostics and logs why, throttled per kind.
   void dropFrame(Drop kind, const std::string& sentence);
+  /// Subscribes to the preprocessed images once a map is loaded (and the image transport is up): without a
+  /// map every frame would be dropped, and a camera played with `rosbag play --wait-for-subscribers` waits
+  /// for the subscription (the preprocessor subscribes to the camera only while someone listens to it).
+  void subscribeImages();
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
   // Static parameters, read in onInit.
@@ -87,7 +91,8 @@ private:
   double min_rate_hz_ = 1.0, max_rate_hz_ = 1000.0;
 
   std::shared_ptr<image_transport::ImageTransport> it_;
-  image_transport::Subscriber image_sub_;
+  image_transport::Subscriber image_sub_;  // from the first map loaded on (subscribeImages)
+  std::string image_topic_;                // its resolved name
   image_transport::Publisher debug_pub_;
   ros::Subscriber params_sub_;
   ros::Subscriber motion_sub_;  // only with ~motion_type twist or odometry
@@ -127,6 +132,7 @@ private:
   FrameGapCounts gaps_;
   DroppedFrames dropped_;
   double time_sum_ms_ = 0.0, time_max_ms_ = 0.0, last_time_ms_ = 0.0;
+  double busy_s_ = 0.0;  // wall time of the last image callback, parameter changes included
 };
 
 namespace
@@ -333,8 +339,9 @@ void LocalizerNodelet::onInit()
   load_map_srv_ = private_nh.advertiseService("load_map", &LocalizerNodelet::loadMapCb, this);
   const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
   params_sub_ = nh.subscribe(params_topic, 1, &LocalizerNodelet::paramsCb, this);
-  const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh);
-  image_sub_ = it_->subscribe("image_preprocessed", 1, &LocalizerNodelet::imageCb, this, hints);
+  image_topic_ = nh.resolveName("image_preprocessed");
+  if (map_)
+    subscribeImages();
   // The same single-threaded queue as the images: the detector needs no lock.
   std::string problem;
   const MotionType motion_type = readMotionType(private_nh, MotionType::kNone, &problem);
@@ -443,7 +450,8 @@ bool LocalizerNodelet::loadMap(const std::string& path, std::string* message)
     *message = e.what();
     if (!map_)
       map_error_ = *message;
-    NODELET_ERROR("%s%s", message->c_str(), map_ ? "; keeping the current map" : "; waiting for ~load_map");
+    NODELET_ERROR("%s%s", message->c_str(), map_ ? "; keeping the current map" :
+                                                 "; waiting for ~load_map (not listening to images until then)");
     return false;
   }
   if (announced_ && *announced_ != map->params())
@@ -458,6 +466,7 @@ bool LocalizerNodelet::loadMap(const std::string& path, std::string* message)
   map_ = map;
   map_path_ = path;
   map_error_.clear();
+  subscribeImages();
   {
     std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
     map_width_ = map_->width();
@@ -475,6 +484,14 @@ bool LocalizerNodelet::loadMap(const std::string& path, std::string* message)
              std::to_string(map_->width()) + "x" + std::to_string(map_->height()) + " px";
   NODELET_INFO("%s", message->c_str());
   return true;
+}
+
+void LocalizerNodelet::subscribeImages()
+{
+  if (image_sub_ || !it_)
+    return;
+  const image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
+  image_sub_ = it_->subscribe("image_preprocessed", 1, &LocalizerNodelet::imageCb, this, hints);
 }
 
 void LocalizerNodelet::useMapIfAccepted()
@@ -543,6 +560,16 @@ void LocalizerNodelet::paramsCb(const std_msgs::StringConstPtr& msg)
 
 void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
 {
+  // How long this callback takes, parameter changes included: frames that come meanwhile wait in an input
+  // queue of 1, so all but the newest are lost, and the next frame shows a gap (FrameGapCounts::whileBusy).
+  struct BusyClock
+  {
+    double* busy_s;
+    std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+    ~BusyClock() { *busy_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); }
+  };
+  const double busy_before_s = busy_s_;
+  const BusyClock busy{ &busy_s_ };
   bool changed = false;
   LocalizerParams requested;
   {
@@ -650,6 +677,12 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
   if (result.missed_frames > 0)
   {
     const double gap = (msg->header.stamp - last_stamp_).toSec();
+    const bool while_busy = FrameGapCounts::whileBusy(busy_before_s, gap, result.missed_frames);
+    if (while_busy)
+      NODELET_WARN_THROTTLE(5.0, "The localizer spent %.3f s on the frame before this one (a parameter change "
+                                 "measures the map's tables again): frames that came meanwhile were replaced in "
+                                 "its input queue of 1 and count as missed in the gap below",
+                            busy_before_s);
     if (result.gap == FrameGap::kSearchedAgain)
       NODELET_WARN("A gap of %.3f s in the image stamps (%.3f s -> %.3f s), longer than the sequence window: "
                    "searching the whole map again",
@@ -661,7 +694,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
                             result.gap == FrameGap::kNotFilledIn ? "not filled in (fill_frame_gaps is off)" :
                                                                    "the view after it is the one before it: the "
                                                                    "robot stood still, nothing filled in");
-    gaps_.add(result);
+    gaps_.add(result, while_busy);
   }
   last_stamp_ = msg->header.stamp;
 
@@ -755,13 +788,14 @@ void LocalizerNodelet::dropFrame(Drop kind, const std::string& sentence)
 void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
 {
   if (!map_)
-    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, map_error_);
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                 map_error_ + "; not listening to " + image_topic_ + " until a map is loaded");
   else if (!localizer_)
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, refusal_);
   else if (dropped_.newestDropped())
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "dropping " + dropped_.lastReason());
   else if (frames_ == 0)
-    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for images on " + image_sub_.getTopic());
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for images on " + image_topic_);
   else if (last_result_.status == LocalizationStatus::kLost)
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "lost: searching the whole map");
   else
@@ -775,13 +809,24 @@ void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("gaps in the image stamps", gaps_.gaps);
   stat.add("frames missed in gaps that did not restart the search", gaps_.missed_frames);
   stat.add("gaps that restarted the search", gaps_.searched_again);
+  stat.add("of the frames missed, while the localizer was busy", gaps_.missed_while_busy);
   stat.add("status", toString(last_result_.status));
   stat.add("keyframe", last_result_.keyframe);
   stat.add("confidence", last_result_.confidence);
   stat.add("homing angle (rad)", last_result_.homing_angle_rad);
   stat.addf("processing time last (ms)", "%.3f", last_time_ms_);
-  stat.addf("processing time mean (ms)", "%.3f", frames_in_period_ > 0 ? time_sum_ms_ / frames_in_period_ : 0.0);
-  stat.addf("processing time max (ms)", "%.3f", time_max_ms_);
+  // Mean and max over the frames since the previous report; none when no frame came since (a drive ended).
+  stat.add("frames since the last report", frames_in_period_);
+  if (frames_in_period_ > 0)
+  {
+    stat.addf("processing time mean since the last report (ms)", "%.3f", time_sum_ms_ / frames_in_period_);
+    stat.addf("processing time max since the last report (ms)", "%.3f", time_max_ms_);
+  }
+  else
+  {
+    stat.add("processing time mean since the last report (ms)", "none");
+    stat.add("processing time max since the last report (ms)", "none");
+  }
   frames_in_period_ = 0;
   time_sum_ms_ = 0.0;
   time_max_ms_ = 0.0;

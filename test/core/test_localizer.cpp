@@ -152,6 +152,29 @@ TEST(HomingAngle, FromShiftByHand)
 
 // ---------------------------------------------------------------- construction and input
 
+TEST(FrameGapCounts, CountsTheFramesOfAGapThatCameWhileTheLocalizerWasBusy)
+{
+  // A gap of 0.5 s with 4 frames missed: a frame every 0.1 s. Busy for 0.05 s on the frame before: no frame
+  // came meanwhile (the camera's gap); for 0.35 s: three did, and the input queue of 1 kept only the newest.
+  EXPECT_FALSE(arl::FrameGapCounts::whileBusy(0.05, 0.5, 4));
+  EXPECT_TRUE(arl::FrameGapCounts::whileBusy(0.35, 0.5, 4));
+  EXPECT_FALSE(arl::FrameGapCounts::whileBusy(0.1, 0.2, 1));  // exactly one period: the next frame, not one lost
+  EXPECT_TRUE(arl::FrameGapCounts::whileBusy(1.3, 1.3, 12));
+  EXPECT_FALSE(arl::FrameGapCounts::whileBusy(1.0, 0.0, 0));  // no gap
+  arl::FrameGapCounts counts;
+  arl::LocalizationResult result;
+  result.missed_frames = 4;
+  result.gap = arl::FrameGap::kFilledIn;
+  counts.add(result, true);
+  counts.add(result, false);
+  result.gap = arl::FrameGap::kSearchedAgain;  // its frames are not counted as missed, busy or not
+  counts.add(result, true);
+  EXPECT_EQ(3u, counts.gaps);
+  EXPECT_EQ(8u, counts.missed_frames);
+  EXPECT_EQ(4u, counts.missed_while_busy);
+  EXPECT_EQ(1u, counts.searched_again);
+}
+
 TEST(Localizer, RejectsEmptyMapInvalidParamsAndBadFrames)
 {
   EXPECT_THROW(arl::Localizer(std::make_shared<arl::RouteMap>(arl::PreprocessingParams()), arl::LocalizerParams()),

@@ -51,9 +51,18 @@ class RepeatTest(unittest.TestCase):
         cls.localizations = fx.Collector('/repeat/localization', Localization)
         cls.debug_images = DebugImageSummaries('/repeat/localization_debug_image')
         cls.rosout = fx.RosoutCollector()
+        # Before a map: once the localizer listens to the preprocessing parameters (its last subscription
+        # before the images used to be), who listens to the repeat camera and to the preprocessed images.
+        fx.wait_for(lambda: fx.subscribers('/repeat/preprocessing_params'), 60, 'the localizer to start')
+        rospy.sleep(1.0)
+        cls.listeners_without_map = (fx.subscribers('/repeat_camera/image_raw'),
+                                     fx.subscribers('/repeat/image_preprocessed'))
         # Teach, then load the map into the running localizer; a missing map is refused and the
         # loaded one kept.
         cls.finish, cls.loaded = fx.teach_and_load(os.path.join(cls.tmp, 'teach.bag'), FRAMES, cls.map_path)
+        fx.wait_for(lambda: fx.subscribers('/repeat_camera/image_raw'), 30, 'the repeat camera to be listened to')
+        cls.listeners_with_map = (fx.subscribers('/repeat_camera/image_raw'),
+                                  fx.subscribers('/repeat/image_preprocessed'))
         cls.missing = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(os.path.join(cls.tmp, 'no_such_map.bag'))
 
         # First drive: the generator's repeat run (other light, stops, slow stretches, heading offsets).
@@ -113,6 +122,14 @@ class RepeatTest(unittest.TestCase):
     def tearDownClass(cls):
         shutil.rmtree(cls.tmp, ignore_errors=True)
         fx.remove(cls.map_path)
+
+    def test_no_frame_is_taken_before_a_map_is_loaded(self):
+        # Without a map the localizer does not subscribe to the preprocessed images, so the preprocessor does
+        # not subscribe to the camera: `rosbag play --wait-for-subscribers` waits for the map instead of
+        # playing frames that would all be dropped. Loading one subscribes both.
+        self.assertEqual(self.listeners_without_map, ([], []))
+        self.assertEqual(len(self.listeners_with_map[0]), 1)
+        self.assertEqual(len(self.listeners_with_map[1]), 1)
 
     def test_map_is_taught_and_loaded(self):
         self.assertTrue(self.finish.success, self.finish.message)

@@ -97,6 +97,13 @@ def wait_for(predicate, timeout, what):
     raise AssertionError('timed out after %.0f s waiting for %s' % (timeout, what))
 
 
+def subscribers(topic):
+    """The nodes the ROS master lists as subscribed to `topic` (resolved name), sorted."""
+    import rosgraph
+    _, subscribed, _ = rosgraph.Master(rospy.get_name()).getSystemState()
+    return sorted(node for name, nodes in subscribed if name == topic for node in nodes)
+
+
 def wait_for_service(name, timeout=60.0):
     rospy.wait_for_service(name, timeout=timeout)
 
