@@ -537,16 +537,7 @@ std::string setParameterChecked(const std::string& name, const std::string& valu
     return removedParameterSentence(name) + "; the value given is ignored";
   if (!spec)
   {
-    std::string sentence = "unknown parameter '" + name + "' refused";
-    const std::vector<std::string> similar = similarParameterNames(name);
-    if (!similar.empty())
-    {
-      sentence += " (did you mean";
-      for (const std::string& other : similar)
-        sentence += " " + other;
-      sentence += "?)";
-    }
-    return sentence;
+    return "unknown parameter '" + name + "' refused" + didYouMean(name);
   }
   const std::string keeping = "; keeping " + spec->valueText(*params);
   if (spec->type == ParameterType::kChoice)
@@ -661,6 +652,17 @@ std::vector<std::string> similarParameterNames(const std::string& name)
   return similar;
 }
 
+std::string didYouMean(const std::string& name)
+{
+  const std::vector<std::string> similar = similarParameterNames(name);
+  if (similar.empty())
+    return "";
+  std::string text = " (did you mean";
+  for (const std::string& other : similar)
+    text += " " + other;
+  return text + "?)";
+}
+
 bool applyParameter(const std::string& name, const std::string& value, PreprocessingParams* preprocessing,
                     LocalizerParams* localizer, std::string* error)
 {
@@ -672,7 +674,7 @@ bool applyParameter(const std::string& name, const std::string& value, Preproces
   }
   if (!spec || spec->group == ParameterGroup::kMapRecorder || spec->group == ParameterGroup::kRouteFollower)
   {
-    *error = "unknown parameter '" + name + "'";
+    *error = "unknown parameter '" + name + "'" + (spec ? std::string() : didYouMean(name));
     return false;
   }
   ParameterSet params;

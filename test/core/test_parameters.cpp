@@ -56,6 +56,16 @@ TEST_F(ParameterFile, BooleansInEveryFormRosparamReads)
     EXPECT_TRUE(localizer.run_dead_reckoning) << yes;
   }
   EXPECT_NE(std::string::npos, load("parallel: maybe\n").find("'maybe'"));
+  // --set and the strict loader name the parameter a misspelling is close to, as the checked path does.
+  arl::PreprocessingParams preprocessing;
+  arl::LocalizerParams localizer;
+  std::string error;
+  EXPECT_FALSE(arl::applyParameter("ring_bufer_rows", "20", &preprocessing, &localizer, &error));
+  EXPECT_EQ("unknown parameter 'ring_bufer_rows' (did you mean ring_buffer_rows?)", error);
+  EXPECT_FALSE(arl::applyParameter("no_such_parameter", "1", &preprocessing, &localizer, &error));
+  EXPECT_EQ("unknown parameter 'no_such_parameter'", error);
+  EXPECT_FALSE(arl::applyParameter("homing_gain", "3", &preprocessing, &localizer, &error));  // the follower's
+  EXPECT_EQ("unknown parameter 'homing_gain'", error);
 }
 
 TEST(ParameterFileRead, AFolderIsRefusedAsUnreadable)
