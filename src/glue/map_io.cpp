@@ -45,6 +45,11 @@ bool fileExists(const std::string& path, struct stat* info)
   return ::stat(path.c_str(), info) == 0;
 }
 
+bool endsWith(const std::string& text, const std::string& end)
+{
+  return text.size() >= end.size() && text.compare(text.size() - end.size(), end.size(), end) == 0;
+}
+
 bool isMono8(const std::string& encoding)
 {
   return encoding == sensor_msgs::image_encodings::MONO8 || encoding == sensor_msgs::image_encodings::TYPE_8UC1;
@@ -611,7 +616,11 @@ RouteMap readMap(const std::string& path, std::map<int, TaughtMotion>* motion)
   {
     throw MapError("map file " + inQuotes(path) + " is truncated or corrupt at byte " +
                    std::to_string(scanner.offset()) + " of " + std::to_string(size) + ": " + e.what() +
-                   "; if a recording was interrupted, `rosbag reindex` may recover it");
+                   (endsWith(path, ".active") ?
+                        "; a recording was interrupted: `rosbag reindex " + path +
+                            "` may recover the keyframes it had flushed" :
+                        "; was it copied only in part? (a map the recorder finished is complete, and an "
+                        "interrupted recording leaves MAP.active, which `rosbag reindex` may recover)"));
   }
   catch (const std::bad_alloc&)
   {
