@@ -45,6 +45,54 @@ class GroundTruthFormulaTest(unittest.TestCase):
         self.assertEqual(generate_route.nearest_teach_frame(1000.0, 0.5, 300), 299)
 
 
+class CameraShakeGeometryTest(unittest.TestCase):
+    # --camera-shake-deg, worked by hand: focal 100 px, principal point (160, 90).
+    F, CX, CY = 100.0, 160.0, 90.0
+
+    def mapped(self, pitch_deg, roll_deg, u, v):
+        h = generate_route.shake_homography(math.radians(pitch_deg), math.radians(roll_deg), self.F, self.CX, self.CY)
+        p = h.dot([u, v, 1.0])
+        return p[0] / p[2], p[1] / p[2]
+
+    def test_pitch_up_moves_the_scene_down_by_f_tan(self):
+        # The ray through the principal point is 3 deg above the new optical axis: 100 tan 3 deg = 5.241 px below.
+        u, v = self.mapped(3.0, 0.0, self.CX, self.CY)
+        self.assertAlmostEqual(u, 160.0, places=9)
+        self.assertAlmostEqual(v, 90.0 + 100.0 * math.tan(math.radians(3.0)), places=9)
+        u, v = self.mapped(-3.0, 0.0, self.CX, self.CY)
+        self.assertAlmostEqual(v, 90.0 - 5.2407779, places=6)
+
+    def test_roll_left_turns_the_scene_clockwise_about_the_principal_point(self):
+        # A point 50 px right of the principal point, the camera rolled 10 deg left: 50 (cos 10, sin 10) from it,
+        # i.e. 49.240 px right and 8.682 px down (image y grows downwards).
+        u, v = self.mapped(0.0, 10.0, self.CX + 50.0, self.CY)
+        self.assertAlmostEqual(u, 160.0 + 49.2403877, places=6)
+        self.assertAlmostEqual(v, 90.0 + 8.6824089, places=6)
+
+    def test_the_image_moves_as_the_homography_says(self):
+        import cv2  # noqa: F401  (generate_route's own import; skip the test where it is missing)
+        image = np.zeros((180, 320, 3), np.uint8)
+        image[88:93, 208:213] = 255                                   # a 5x5 dot centred at (210, 90)
+        shaken = generate_route.shake_image(image, math.radians(3.0), math.radians(10.0), self.F, self.CX, self.CY)
+        gray = shaken[:, :, 0].astype(np.float64)
+        ys, xs = np.mgrid[0:180, 0:320]
+        centre = ((gray * xs).sum() / gray.sum(), (gray * ys).sum() / gray.sum())
+        expected = self.mapped(3.0, 10.0, 210.0, 90.0)
+        self.assertAlmostEqual(centre[0], expected[0], delta=0.2)
+        self.assertAlmostEqual(centre[1], expected[1], delta=0.2)
+        self.assertGreater(expected[1], 90.0 + 5.0)                    # moved down by the pitch and the roll
+
+    def test_angles_stay_within_the_amplitude_and_swing_both_ways(self):
+        t = np.arange(0, 60.0, 0.1)
+        pitch, roll = generate_route.shake_angles(t, 0.05, np.random.default_rng(1))
+        for angle in (pitch, roll):
+            self.assertLessEqual(np.abs(angle).max(), 0.05 + 1e-12)
+            self.assertGreater(angle.max(), 0.03)
+            self.assertLess(angle.min(), -0.03)
+        again = generate_route.shake_angles(t, 0.05, np.random.default_rng(1))
+        np.testing.assert_array_equal(pitch, again[0])
+
+
 class RepeatScheduleTest(unittest.TestCase):
     def setUp(self):
         self.length = 149.5
@@ -428,6 +476,29 @@ class ConditionsCommandLineTest(unittest.TestCase):
                 generate_route.main(["--output", self.tmp, "--repeat-lateral-m", "3.5"])
         self.assertEqual(caught.exception.code, 2)
         self.assertIn("--repeat-lateral-m must be in [-3, 3]", stderr.getvalue())
+
+    def test_camera_shake_moves_only_the_repeat_run(self):
+        base, base_rows, _ = self.generate("base_shake")
+        shaken, rows, _ = self.generate("shaken", "--camera-shake-deg", "3")
+        self.assertNotIn("camera_pitch_deg", base_rows[0])   # without the option: the columns of before
+        self.assertEqual(list(rows[0].keys()), list(base_rows[0].keys()) + ["camera_pitch_deg", "camera_roll_deg"])
+        for axis in ("camera_pitch_deg", "camera_roll_deg"):
+            angles = [float(row[axis]) for row in rows]
+            self.assertLessEqual(max(abs(a) for a in angles), 3.0)
+            self.assertLess(min(angles), -0.5)                # both ways over a run of tens of frames
+            self.assertGreater(max(angles), 0.5)
+        for row, base_row in zip(rows, base_rows):
+            self.assertEqual({k: v for k, v in row.items() if not k.startswith("camera_")}, base_row)
+        for a, b in zip(self.images(base, "teach"), self.images(shaken, "teach")):
+            np.testing.assert_array_equal(a, b)                # the teach run is untouched
+        moved = [np.abs(a.astype(int) - b.astype(int)).mean()
+                 for a, b in zip(self.images(base, "repeat"), self.images(shaken, "repeat"))]
+        self.assertGreater(np.median(moved), 2.0)
+        with contextlib.redirect_stderr(io.StringIO()) as stderr:
+            with self.assertRaises(SystemExit) as caught:
+                generate_route.main(["--output", self.tmp, "--camera-shake-deg", "12"])
+        self.assertEqual(caught.exception.code, 2)
+        self.assertIn("--camera-shake-deg must be in [0, 10]", stderr.getvalue())
 
     def test_bad_conditions_are_refused(self):
         with contextlib.redirect_stderr(io.StringIO()) as stderr:
