@@ -34,15 +34,21 @@ struct ShiftedDifference
 /// each shifted on its own: the cost is the sum of each band's smallest SAD (a camera beside the taught
 /// line sees near things, low in the image, move more than distant ones: parallax). The reported shift is
 /// still that of the whole strip.
+/// With `max_vertical_shift_px` V > 0 each band (or the whole strip) is also compared at every vertical
+/// offset v in [-V, V] (query row y against keyframe row y - v, over the rows where both are compared rows,
+/// per pixel), and each shift counts at its best v: a camera that pitches and rolls (a rover on rough
+/// ground) moves the image vertically. Costs (2V + 1) times the comparisons.
 class ImageDifference
 {
 public:
-  ImageDifference(int width, int height, int first_row, int max_shift_px, bool subpixel = true, int bands = 1);
+  ImageDifference(int width, int height, int first_row, int max_shift_px, bool subpixel = true, int bands = 1,
+                  int max_vertical_shift_px = 0);
 
   int width() const { return width_; }
   int height() const { return height_; }
   int maxShift() const { return max_shift_px_; }
   int bands() const { return bands_; }
+  int maxVerticalShift() const { return max_vertical_shift_px_; }
   /// Pixels compared per shift: (height - first_row) * (width - 2m).
   int comparedPixels() const { return (height_ - first_row_) * (width_ - 2 * max_shift_px_); }
 
@@ -64,6 +70,7 @@ private:
   int width_, height_, first_row_, max_shift_px_;
   bool subpixel_;
   int bands_;
+  int max_vertical_shift_px_;
 };
 
 /// 2x2 box average, rounded to nearest: half has (width / 2) x (height / 2) pixels, an odd last column or

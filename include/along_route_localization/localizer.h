@@ -51,6 +51,11 @@ struct LocalizerParams
   /// 1, the paper's one shift for the whole strip; 2 for a repeat beside the taught line, where the near
   /// ground low in the view moves more than what is far (doc/results.md, "A repeat beside the taught line").
   int shift_bands = 1;
+  /// Vertical offsets, [-V, V] rows of the preprocessed image, at which each keyframe is also compared
+  /// (ImageDifference): 0, the paper's level comparison; 1-2 for a camera that pitches and rolls (a rover on
+  /// rough ground: doc/results.md, "A camera that pitches and rolls"). Not for the census cost, nor the
+  /// coarse global search of big maps.
+  int max_vertical_shift_px = 0;
   bool subpixel_shift = true;
   int contrast_window = 10;           ///< n, eq. 2 half window, keyframes
   float contrast_clamp = 2.0f;        ///< |enhanced cost| limit

@@ -348,7 +348,8 @@ inline uint32_t hammingBytes(const uint8_t* a, const uint8_t* b, int n)
 
 /// Picks the best of the 2m + 1 costs (ties go to the smallest |d|: with no evidence of a rotation,
 /// report none) and refines the shift with the parabola through it and its neighbours.
-ShiftedDifference pickBestShift(const uint32_t* cost, int max_shift_px, int compared_pixels, bool subpixel)
+template <typename Cost>
+ShiftedDifference pickBestShift(const Cost* cost, int max_shift_px, float divisor, bool subpixel)
 {
   const int shifts = 2 * max_shift_px + 1;
   int best = 0;
@@ -356,7 +357,7 @@ ShiftedDifference pickBestShift(const uint32_t* cost, int max_shift_px, int comp
     if (cost[i] < cost[best] || (cost[i] == cost[best] && std::abs(i - max_shift_px) < std::abs(best - max_shift_px)))
       best = i;
   ShiftedDifference result;
-  result.cost = static_cast<float>(cost[best]) / static_cast<float>(compared_pixels);
+  result.cost = static_cast<float>(cost[best]) / divisor;
   double shift = best - max_shift_px;
   if (subpixel && best > 0 && best < shifts - 1)
   {
@@ -369,17 +370,67 @@ ShiftedDifference pickBestShift(const uint32_t* cost, int max_shift_px, int comp
   return result;
 }
 
-/// Step 2 for one keyframe: the strip at its best shift, or with `bands` > 1 the compared rows in that many
-/// horizontal bands, each at its own best shift (ImageDifference). `next`: the keyframe compared after this one.
-ShiftedDifference stripDifference(const Strip& strip, int bands, const uint8_t* query, const uint8_t* keyframe,
-                                  int compared_pixels, bool subpixel, const uint8_t* next = nullptr)
+/// Step 2 with a vertical search (ImageDifference, max_vertical_shift_px V > 0): in each band, for every
+/// vertical offset v in [-V, V], the band's query rows y whose keyframe row y - v is a compared row too,
+/// at every shift; each shift's per-pixel cost is that of its best v. The whole strip's cost per shift is the
+/// bands' per-pixel costs weighed by their rows (with one band: the best v's), so an image moved vertically
+/// by up to V rows (the camera pitched or rolled) matches as if level.
+ShiftedDifference stripDifferenceVertical(const Strip& strip, int bands, int vertical, const uint8_t* query,
+                                          const uint8_t* keyframe, bool subpixel)
 {
+  const int m = strip.max_shift, shifts = 2 * m + 1, rows = strip.height - strip.first_row;
+  const float columns = static_cast<float>(strip.columns());
+  float whole[256] = {};
+  float best_sum = 0.0f;
+  for (int b = 0; b < bands; ++b)
+  {
+    const int top = strip.first_row + rows * b / bands, bottom = strip.first_row + rows * (b + 1) / bands;
+    float band[256];
+    std::fill_n(band, 256, std::numeric_limits<float>::infinity());
+    for (int v = -vertical; v <= vertical; ++v)
+    {
+      const int first = std::max(top, strip.first_row + v), last = std::min(bottom, strip.height + v);
+      if (last <= first)
+        continue;  // a band of fewer rows than |v|, at the edge: no row of it has a counterpart
+      const Strip part{ strip.width, 0, last - first, m };
+      uint32_t sad[256];
+      std::fill_n(sad, shifts, 0u);
+      part.sads(query + static_cast<size_t>(first) * strip.width, keyframe + static_cast<size_t>(first - v) * strip.width,
+                -m, shifts, sad);
+      const float pixels = static_cast<float>(last - first) * columns;
+      for (int i = 0; i < shifts; ++i)
+        band[i] = std::min(band[i], static_cast<float>(sad[i]) / pixels);
+    }
+    const float weight = static_cast<float>(bottom - top) / static_cast<float>(rows);
+    float least = band[0];
+    for (int i = 0; i < shifts; ++i)
+    {
+      least = std::min(least, band[i]);
+      whole[i] += weight * band[i];
+    }
+    best_sum += weight * least;
+  }
+  ShiftedDifference d = pickBestShift(whole, m, 1.0f, subpixel);  // the whole strip's shift
+  if (bands > 1)
+    d.cost = best_sum;
+  return d;
+}
+
+/// Step 2 for one keyframe: the strip at its best shift, or with `bands` > 1 the compared rows in that many
+/// horizontal bands, each at its own best shift, or with `vertical` > 0 also at its best vertical offset
+/// (ImageDifference). `next`: the keyframe compared after this one.
+ShiftedDifference stripDifference(const Strip& strip, int bands, int vertical, const uint8_t* query,
+                                  const uint8_t* keyframe, int compared_pixels, bool subpixel,
+                                  const uint8_t* next = nullptr)
+{
+  if (vertical > 0)
+    return stripDifferenceVertical(strip, bands, vertical, query, keyframe, subpixel);
   const int m = strip.max_shift, shifts = 2 * m + 1, rows = strip.height - strip.first_row;
   if (bands == 1)
   {
     uint32_t sad[256];
     strip.sads(query, keyframe, -m, shifts, sad, next);
-    return pickBestShift(sad, m, compared_pixels, subpixel);
+    return pickBestShift(sad, m, static_cast<float>(compared_pixels), subpixel);
   }
   uint32_t whole[256] = {};
   uint64_t best_sum = 0;
@@ -397,16 +448,17 @@ ShiftedDifference stripDifference(const Strip& strip, int bands, const uint8_t* 
     }
     best_sum += least;
   }
-  ShiftedDifference d = pickBestShift(whole, m, compared_pixels, subpixel);  // the whole strip's shift
+  ShiftedDifference d = pickBestShift(whole, m, static_cast<float>(compared_pixels), subpixel);  // the whole strip's
   d.cost = static_cast<float>(best_sum) / static_cast<float>(compared_pixels);
   return d;
 }
 
 }  // namespace
 
-ImageDifference::ImageDifference(int width, int height, int first_row, int max_shift_px, bool subpixel, int bands)
+ImageDifference::ImageDifference(int width, int height, int first_row, int max_shift_px, bool subpixel, int bands,
+                                 int max_vertical_shift_px)
   : width_(width), height_(height), first_row_(first_row), max_shift_px_(max_shift_px), subpixel_(subpixel),
-    bands_(bands)
+    bands_(bands), max_vertical_shift_px_(max_vertical_shift_px)
 {
   if (width <= 0 || height <= 0 || first_row < 0 || first_row >= height)
     throw std::invalid_argument("ImageDifference: need width, height > 0 and 0 <= first_row < height");
@@ -414,6 +466,8 @@ ImageDifference::ImageDifference(int width, int height, int first_row, int max_s
     throw std::invalid_argument("ImageDifference: bands must be in [1, compared rows]");
   if (max_shift_px < 0 || max_shift_px > 127 || width - 2 * max_shift_px < 1)
     throw std::invalid_argument("ImageDifference: max_shift_px must be in [0, min(127, (width - 1) / 2)]");
+  if (max_vertical_shift_px < 0 || max_vertical_shift_px >= height - first_row)
+    throw std::invalid_argument("ImageDifference: max_vertical_shift_px must be in [0, compared rows - 1]");
 }
 
 uint32_t ImageDifference::sadAtShift(const uint8_t* query, const uint8_t* keyframe, int shift_px) const
@@ -425,8 +479,8 @@ uint32_t ImageDifference::sadAtShift(const uint8_t* query, const uint8_t* keyfra
 
 ShiftedDifference ImageDifference::compare(const uint8_t* query, const uint8_t* keyframe) const
 {
-  return stripDifference(Strip{ width_, first_row_, height_, max_shift_px_ }, bands_, query, keyframe,
-                         comparedPixels(), subpixel_);
+  return stripDifference(Strip{ width_, first_row_, height_, max_shift_px_ }, bands_, max_vertical_shift_px_, query,
+                         keyframe, comparedPixels(), subpixel_);
 }
 
 namespace
@@ -436,9 +490,10 @@ namespace
 class CompareManyBody : public cv::ParallelLoopBody
 {
 public:
-  CompareManyBody(const Strip& strip, int bands, int compared_pixels, bool subpixel, const uint8_t* query,
-                  const uint8_t* keyframes, float* costs, float* shifts)
-    : strip_(strip), bands_(bands), compared_pixels_(compared_pixels), subpixel_(subpixel), query_(query),
+  CompareManyBody(const Strip& strip, int bands, int vertical, int compared_pixels, bool subpixel,
+                  const uint8_t* query, const uint8_t* keyframes, float* costs, float* shifts)
+    : strip_(strip), bands_(bands), vertical_(vertical), compared_pixels_(compared_pixels), subpixel_(subpixel),
+      query_(query),
       keyframes_(keyframes), costs_(costs), shifts_(shifts)
   {
   }
@@ -449,7 +504,8 @@ public:
     for (int k = range.start; k < range.end; ++k)
     {
       const uint8_t* keyframe = keyframes_ + k * bytes;
-      const ShiftedDifference d = stripDifference(strip_, bands_, query_, keyframe, compared_pixels_, subpixel_,
+      const ShiftedDifference d = stripDifference(strip_, bands_, vertical_, query_, keyframe, compared_pixels_,
+                                                  subpixel_,
                                                   k + 1 < range.end ? keyframe + bytes : nullptr);
       costs_[k] = d.cost;
       shifts_[k] = d.shift_px;
@@ -459,6 +515,7 @@ public:
 private:
   Strip strip_;
   int bands_;
+  int vertical_;
   int compared_pixels_;
   bool subpixel_;
   const uint8_t* query_;
@@ -472,7 +529,8 @@ private:
 void ImageDifference::compareMany(const uint8_t* query, const uint8_t* keyframes, int count, float* costs,
                                   float* shifts, bool parallel) const
 {
-  const CompareManyBody body(Strip{ width_, first_row_, height_, max_shift_px_ }, bands_, comparedPixels(), subpixel_,
+  const CompareManyBody body(Strip{ width_, first_row_, height_, max_shift_px_ }, bands_, max_vertical_shift_px_,
+                             comparedPixels(), subpixel_,
                              query, keyframes, costs, shifts);
   // Below a few hundred keyframes the thread hand-over costs more than it saves.
   if (parallel && count >= 512)
@@ -527,7 +585,7 @@ ShiftedDifference CensusDifference::compare(const uint8_t* query, const uint8_t*
                           strip);
     cost[i] = sum;
   }
-  return pickBestShift(cost, m, geometry_.comparedPixels(), geometry_.subpixel());
+  return pickBestShift(cost, m, static_cast<float>(geometry_.comparedPixels()), geometry_.subpixel());
 }
 
 void halveImage(const uint8_t* image, int width, int height, uint8_t* half)

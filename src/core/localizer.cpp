@@ -74,6 +74,9 @@ std::string LocalizerParams::validate() const
     e << "seqslam exclusion_radius must be >= 0, got " << seqslam.exclusion_radius;
   else if (shift_bands > 1 && cost_function != CostFunction::kSad)
     e << "shift_bands " << shift_bands << " needs cost_function sad (the census cost takes one shift)";
+  else if (max_vertical_shift_px > 0 && cost_function != CostFunction::kSad)
+    e << "max_vertical_shift_px " << max_vertical_shift_px << " needs cost_function sad (the census cost compares "
+      << "level images only)";
   else if (ring_buffer_rows < min_init_frames)
     // A global search answers from the min_init_frames-th row on; the window would never hold that many,
     // and a track once lost would stay lost (Nordland, K = 4 and min_init_frames 5: lost from frame 22 on).
@@ -94,6 +97,9 @@ std::string LocalizerParams::validateForImages(const PreprocessingParams& images
   if (shift_bands > compared_rows)
     return "shift_bands must be at most the compared rows (" + std::to_string(compared_rows) + "), got " +
            std::to_string(shift_bands);
+  if (max_vertical_shift_px >= compared_rows)
+    return "max_vertical_shift_px must be below the compared rows (" + std::to_string(compared_rows) + "), got " +
+           std::to_string(max_vertical_shift_px);
   return std::string();
 }
 
@@ -224,6 +230,7 @@ void Localizer::setParams(const LocalizerParams& params)
     throw std::invalid_argument("invalid localizer parameters: " + invalid);
   const bool comparators_changed = !difference_ || params.max_shift_px != params_.max_shift_px ||
                                    params.shift_bands != params_.shift_bands ||
+                                   params.max_vertical_shift_px != params_.max_vertical_shift_px ||
                                    params.subpixel_shift != params_.subpixel_shift ||
                                    params.cost_function != params_.cost_function ||
                                    params.coarse_search_keyframes != params_.coarse_search_keyframes ||
@@ -350,7 +357,8 @@ void Localizer::rebuildComparators()
   const int w = map_->width(), h = map_->height();
   const int first_row = firstComparedRow();
   difference_.reset(
-      new ImageDifference(w, h, first_row, params_.max_shift_px, params_.subpixel_shift, params_.shift_bands));
+      new ImageDifference(w, h, first_row, params_.max_shift_px, params_.subpixel_shift, params_.shift_bands,
+                          params_.max_vertical_shift_px));
   homing_.reset(new HomingEstimator(w, h, first_row,
                                     clampedHomingParams(w, h, first_row, params_.homing_max_shift_px,
                                                         params_.homing_max_vertical_shift_px)));

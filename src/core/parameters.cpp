@@ -163,6 +163,10 @@ std::vector<ParameterSpec> makeTable()
                         "Horizontal bands of the image each shifted on its own in the shift search (1: one shift; 2 "
                         "for a repeat beside the taught line)",
                         FIELD(localizer.shift_bands)));
+  t.push_back(numberRow("max_vertical_shift_px", loc, 0, 31, "px",
+                        "Vertical offsets [-V, V] at which each keyframe is also compared, px of the preprocessed "
+                        "image (0: level only; 1-2 for a camera that pitches and rolls, a rover on rough ground)",
+                        FIELD(localizer.max_vertical_shift_px)));
   t.push_back(user(numberRow("homing_max_shift_px", loc, 0, 127, "px",
                              "Horizontal shift range of the homing estimate (homing.h), px of the preprocessed image",
                              FIELD(localizer.homing_max_shift_px))));

@@ -305,6 +305,17 @@ void BM_SadCompareBand(benchmark::State& state)
 }
 BENCHMARK(BM_SadCompareBand)->ArgNames({ "shift_bands" })->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
 
+// The same band with a vertical search of +-V rows (max_vertical_shift_px, for a camera that pitches and
+// rolls): 2V + 1 comparisons per shift, each over fewer rows, and none of the level path's prefetching.
+void BM_SadCompareBandVertical(benchmark::State& state)
+{
+  runCompareMany(state, 81,
+                 arl::ImageDifference(kWidth, kHeight, 0, kMaxShiftPx, true, 1, static_cast<int>(state.range(0))),
+                 false);
+}
+BENCHMARK(BM_SadCompareBandVertical)->ArgNames({ "max_vertical_shift_px" })->Arg(0)->Arg(1)->Arg(2)
+    ->Unit(benchmark::kMicrosecond);
+
 // ------------------------------------------------------------------------------------------------
 // The homing estimate (homing.h) of one query against its matched keyframe, once per frame: the
 // defaults (+-16 px over the whole width, +-2 rows per column), next to the SAD search above, which

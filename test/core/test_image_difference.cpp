@@ -91,6 +91,69 @@ TEST(ImageDifference, BandsTakeEachTheirOwnShiftByHand)
   EXPECT_THROW(arl::ImageDifference(8, 4, 2, 1, false, 3), std::invalid_argument);  // 2 rows below the sky
 }
 
+TEST(ImageDifference, AVerticalSearchMatchesAnImageMovedDownByARowByHand)
+{
+  // 6 x 3, m = 1, compared columns 1..4. The query is the keyframe moved down one row (the camera pitched
+  // up), a new row 0 on top:
+  //   keyframe  row 0: 10 20 30 40 50 60   row 1: 60 50 40 30 20 10   row 2: 5 5 5 5 5 5
+  //   query     row 0: 200 x 6             row 1: = keyframe row 0    row 2: = keyframe row 1
+  // Level (V = 0), per shift d, rows 0 + 1 + 2 of |query(y, x) - keyframe(y, x - d)| over x = 1..4:
+  //   d = -1: (170+160+150+140) + (20+0+20+40) + (45+35+25+15) = 620 + 80 + 120 = 820  <- best, 820 / 12
+  //   d =  0: (180+170+160+150) + (30+10+10+30) + 120 = 860;   d = +1: (190+180+170+160) + (40+20+0+20) + 120 = 900
+  // With V = 1, at v = +1 query rows 1-2 meet keyframe rows 0-1: 0 at d = 0, over 8 pixels; that wins.
+  const uint8_t keyframe[18] = { 10, 20, 30, 40, 50, 60,  //
+                                 60, 50, 40, 30, 20, 10,  //
+                                 5,  5,  5,  5,  5,  5 };
+  const uint8_t query[18] = { 200, 200, 200, 200, 200, 200,  //
+                              10,  20,  30,  40,  50,  60,   //
+                              60,  50,  40,  30,  20,  10 };
+  const arl::ImageDifference level(6, 3, 0, 1, false);
+  const arl::ImageDifference vertical(6, 3, 0, 1, false, 1, 1);
+  EXPECT_EQ(0, level.maxVerticalShift());
+  EXPECT_EQ(1, vertical.maxVerticalShift());
+  EXPECT_FLOAT_EQ(820.0f / 12.0f, level.compare(query, keyframe).cost);
+  EXPECT_FLOAT_EQ(-1.0f, level.compare(query, keyframe).shift_px);
+  EXPECT_FLOAT_EQ(0.0f, vertical.compare(query, keyframe).cost);
+  EXPECT_FLOAT_EQ(0.0f, vertical.compare(query, keyframe).shift_px);
+  // Moved up instead (the keyframe moved down against the query): v = -1 matches, by symmetry.
+  EXPECT_FLOAT_EQ(0.0f, vertical.compare(keyframe, query).cost);
+  EXPECT_GT(level.compare(keyframe, query).cost, 50.0f);
+  EXPECT_THROW(arl::ImageDifference(6, 3, 0, 1, false, 1, 3), std::invalid_argument);  // 3 rows compared
+  EXPECT_THROW(arl::ImageDifference(6, 3, 0, 1, false, 1, -1), std::invalid_argument);
+}
+
+TEST(ImageDifference, AVerticalSearchFindsTheShiftOfARandomImageMovedBothWays)
+{
+  // A random 64 x 32 frame moved right by 3 px and down by 2 rows (the rows and columns that come in
+  // repeat the edge): level, no shift matches (random pixels decorrelate over one row); with V = 2 the
+  // shift 3 at v = +2 matches exactly, in one band or two; with V = 1 it cannot.
+  const cv::Mat keyframe = synthetic::randomFrame(7);
+  cv::Mat query(32, 64, CV_8UC1);
+  for (int y = 0; y < 32; ++y)
+    for (int x = 0; x < 64; ++x)
+      query.at<uint8_t>(y, x) = keyframe.at<uint8_t>(std::max(0, y - 2), std::max(0, x - 3));
+  const arl::ShiftedDifference level = arl::ImageDifference(64, 32, 0, 4, false).compare(query.data, keyframe.data);
+  const arl::ShiftedDifference one = arl::ImageDifference(64, 32, 0, 4, false, 1, 1).compare(query.data, keyframe.data);
+  const arl::ShiftedDifference two = arl::ImageDifference(64, 32, 0, 4, false, 1, 2).compare(query.data, keyframe.data);
+  const arl::ShiftedDifference bands = arl::ImageDifference(64, 32, 0, 4, false, 2, 2).compare(query.data, keyframe.data);
+  EXPECT_GT(level.cost, 40.0f);  // uniform bytes differ by 85 on average
+  EXPECT_GT(one.cost, 40.0f);
+  EXPECT_FLOAT_EQ(0.0f, two.cost);
+  EXPECT_FLOAT_EQ(3.0f, two.shift_px);
+  EXPECT_FLOAT_EQ(0.0f, bands.cost);
+  EXPECT_FLOAT_EQ(3.0f, bands.shift_px);
+  // compareMany gives what compare gives, keyframe by keyframe.
+  const cv::Mat other = synthetic::randomFrame(8);
+  std::vector<uint8_t> stack(keyframe.data, keyframe.data + 64 * 32);
+  stack.insert(stack.end(), other.data, other.data + 64 * 32);
+  float costs[2], shifts[2];
+  arl::ImageDifference(64, 32, 0, 4, false, 1, 2).compareMany(query.data, stack.data(), 2, costs, shifts);
+  EXPECT_FLOAT_EQ(0.0f, costs[0]);
+  EXPECT_FLOAT_EQ(3.0f, shifts[0]);
+  EXPECT_FLOAT_EQ(arl::ImageDifference(64, 32, 0, 4, false, 1, 2).compare(query.data, other.data).cost, costs[1]);
+  EXPECT_GT(costs[1], 40.0f);
+}
+
 TEST(ImageDifference, FirstRowSkipsSkyRows)
 {
   // Row 0 differs wildly (sky), rows 1-2 are identical: with first_row 1 the cost is 0.

@@ -241,6 +241,36 @@ TEST(Localizer, ShiftBandsRunThroughTheLocalizerAndTooManyAreRefused)
   }
 }
 
+TEST(Localizer, AVerticalSearchRunsThroughTheLocalizerAndOneBeyondTheRowsIsRefused)
+{
+  const auto map = syntheticMap(40);
+  arl::Localizer localizer(map, arl::LocalizerParams());
+  arl::LocalizerParams too_far;
+  too_far.max_vertical_shift_px = 31;  // the most that 32 compared rows allow (one row compared at |v| = 31)
+  EXPECT_NO_THROW(localizer.setParams(too_far));
+  too_far.max_vertical_shift_px = 32;
+  EXPECT_THROW(localizer.setParams(too_far), std::invalid_argument);
+  // Each query is its keyframe moved down 1 row or up 1 row in turn (a camera that pitches): with V = 1 every
+  // answer is the query's own keyframe, and its reported shift the query's (2 px right).
+  arl::LocalizerParams pitching;
+  pitching.max_vertical_shift_px = 1;
+  localizer.setParams(pitching);
+  EXPECT_EQ(1, localizer.params().max_vertical_shift_px);
+  for (int i = 0; i < 30; ++i)
+  {
+    const cv::Mat keyframe = keyframeCopy(*map, i);
+    cv::Mat query(32, 64, CV_8UC1);
+    const int v = i % 2 == 0 ? 1 : -1;
+    for (int y = 0; y < 32; ++y)
+      for (int x = 0; x < 64; ++x)
+        query.at<uint8_t>(y, x) = keyframe.at<uint8_t>(std::min(31, std::max(0, y - v)), std::max(0, x - 2));
+    const arl::LocalizationResult r = localizer.process(query);
+    EXPECT_EQ(LocalizationStatus::kTracking, r.status) << "frame " << i;
+    EXPECT_EQ(i, r.keyframe) << "frame " << i;
+    EXPECT_NEAR(2.0, r.shift_px, 0.5) << "frame " << i;
+  }
+}
+
 TEST(LocalizerParams, ValidateNamesInvalidValues)
 {
   EXPECT_EQ("", arl::LocalizerParams().validate());
@@ -261,7 +291,9 @@ TEST(LocalizerParams, ValidateNamesInvalidValues)
   invalid[13].relocalization_rows = -1;
   // Found in review: these ran (a negative stop penalty, a NaN cost) or took minutes (a million
   // baseline velocities, a loss window of 2e9 frames).
-  invalid.resize(27);
+  invalid.resize(28);
+  invalid[27].max_vertical_shift_px = 1;  // the census cost compares level images only
+  invalid[27].cost_function = arl::CostFunction::kCensus;
   invalid[25].shift_bands = 0;
   invalid[26].shift_bands = 2;  // the census cost takes one shift for the whole strip
   invalid[26].cost_function = arl::CostFunction::kCensus;
@@ -282,6 +314,8 @@ TEST(LocalizerParams, ValidateNamesInvalidValues)
   EXPECT_NE(std::string::npos, invalid[12].validate().find("cruise_speed_frames")) << invalid[12].validate();
   EXPECT_NE(std::string::npos, invalid[26].validate().find("shift_bands 2 needs cost_function sad"))
       << invalid[26].validate();
+  EXPECT_NE(std::string::npos, invalid[27].validate().find("max_vertical_shift_px 1 needs cost_function sad"))
+      << invalid[27].validate();
 
   for (auto method : { arl::SequenceMethod::kOnlineDtw, arl::SequenceMethod::kSeqSlam })
   {

@@ -361,11 +361,11 @@ TEST(ParameterTiers, TheUserTierIsTheseRowsAndEveryOtherIsAdvanced)
   EXPECT_EQ(recorder, arl::parameterNamesOf(arl::ParameterGroup::kMapRecorder, arl::ParameterTier::kUser));
   EXPECT_EQ(follower, arl::parameterNamesOf(arl::ParameterGroup::kRouteFollower, arl::ParameterTier::kUser));
   EXPECT_LE(localizer.size(), 15u);
-  // The rest of the 82 rows (9 + 57 + 4 + 12) is advanced: 3 of the preprocessor, 43 of the localizer,
+  // The rest of the 83 rows (9 + 58 + 4 + 12) is advanced: 3 of the preprocessor, 44 of the localizer,
   // none of the recorder, 4 of the follower.
-  EXPECT_EQ(82u, arl::parameterTable().size());
+  EXPECT_EQ(83u, arl::parameterTable().size());
   EXPECT_EQ(3u, arl::parameterNamesOf(arl::ParameterGroup::kPreprocessor, arl::ParameterTier::kAdvanced).size());
-  EXPECT_EQ(43u, arl::parameterNamesOf(arl::ParameterGroup::kLocalizer, arl::ParameterTier::kAdvanced).size());
+  EXPECT_EQ(44u, arl::parameterNamesOf(arl::ParameterGroup::kLocalizer, arl::ParameterTier::kAdvanced).size());
   EXPECT_EQ(0u, arl::parameterNamesOf(arl::ParameterGroup::kMapRecorder, arl::ParameterTier::kAdvanced).size());
   EXPECT_EQ((Names{ "homing_time_constant", "slow_after_frames", "stop_after_frames", "slow_factor" }),
             arl::parameterNamesOf(arl::ParameterGroup::kRouteFollower, arl::ParameterTier::kAdvanced));
@@ -387,8 +387,8 @@ TEST(ParameterTiers, HelpListsTheUserTierAndSaysHowToListTheAdvancedOnes)
     EXPECT_EQ(spec.tier == arl::ParameterTier::kUser, in_help) << spec.name;
     EXPECT_NE(std::string::npos, all.find("    " + spec.name + " = ")) << spec.name;
   }
-  // 3 advanced rows of the preprocessor and 38 of the localizer (the test above names the others).
-  EXPECT_NE(std::string::npos, help.find("  and 46 advanced parameters, not shown")) << help;
+  // 3 advanced rows of the preprocessor and 44 of the localizer (the test above names the others).
+  EXPECT_NE(std::string::npos, help.find("  and 47 advanced parameters, not shown")) << help;
   EXPECT_NE(std::string::npos, help.find("tool --help-advanced lists them\n")) << help;
   EXPECT_EQ(std::string::npos, all.find("not shown")) << all;
   // With them: each group's advanced rows after its user rows, under their own heading.

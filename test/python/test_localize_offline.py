@@ -581,7 +581,7 @@ class LocalizeOfflineTest(unittest.TestCase):
                       '        K: frames in the sequence window', result.stdout)
         self.assertIn('    normalization = divisive  (patch | divisive | none)\n', result.stdout)
         self.assertNotIn('skip_penalty', result.stdout)
-        self.assertIn('  and 46 advanced parameters, not shown', result.stdout)
+        self.assertIn('  and 47 advanced parameters, not shown', result.stdout)
         self.assertIn('localize_offline --help-advanced lists them', result.stdout)
 
         def listed(stdout):
@@ -602,7 +602,7 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertNotIn('not shown', result.stdout)
         every = listed(result.stdout)
         self.assertEqual(len(every), len(set(every)))
-        self.assertEqual(len(every), 66)
+        self.assertEqual(len(every), 67)
         self.assertTrue(set(user) < set(every))
         for name in ('max_step', 'min_texture_ratio', 'output_width', 'seqslam_sequence_length', 'parallel',
                      'posterior_cost_scale'):
