@@ -285,16 +285,18 @@ struct FrameGapCounts
   uint64_t missed_frames = 0;   ///< frames missed in the gaps that did not restart the search
   uint64_t searched_again = 0;  ///< gaps that restarted the search (FrameGap::kSearchedAgain)
   uint64_t stood_still = 0;     ///< gaps with the same view on both sides (FrameGap::kStoodStill)
-  /// Frames missed in gaps that came while the localizer was still busy with the frame before (a
-  /// parameter change measures the map's tables again): a nodelet's input queue then kept only the newest
-  /// frame, so the camera lost none of them.
+  /// Frames missed in gaps no longer than the time the localizer spent on the frame before (whileBusy):
+  /// those frames, if the camera sent them, came while it was busy and were replaced in a nodelet's input
+  /// queue of 1.
   uint64_t missed_while_busy = 0;
 
-  /// Whether a gap of `gap_s` with `missed` frames missed came while the localizer spent `busy_s` on the
-  /// frame before: longer than one frame period, gap_s / (missed + 1), so at least one frame came meanwhile.
+  /// Whether a gap of `gap_s` with `missed` frames missed is of the localizer's own making, having spent
+  /// `busy_s` on the frame before. With an input queue of 1 the frame taken next is the newest that came
+  /// while it was busy, so such a gap is at most busy_s; one longer by more than half a frame period,
+  /// gap_s / (missed + 1), had a frame that came after it was free and still never arrived: upstream.
   static bool whileBusy(double busy_s, double gap_s, int missed)
   {
-    return missed > 0 && gap_s > 0.0 && busy_s * (missed + 1) > gap_s;
+    return missed > 0 && gap_s > 0.0 && busy_s >= gap_s - 0.5 * gap_s / (missed + 1);
   }
 
   void add(const LocalizationResult& result, bool while_busy = false)

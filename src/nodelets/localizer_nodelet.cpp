@@ -132,7 +132,8 @@ private:
   FrameGapCounts gaps_;
   DroppedFrames dropped_;
   double time_sum_ms_ = 0.0, time_max_ms_ = 0.0, last_time_ms_ = 0.0;
-  double busy_s_ = 0.0;  // wall time of the last image callback, parameter changes included
+  double busy_s_ = 0.0;        // wall time of the last image callback, parameter changes included
+  bool changed_last_ = false;  // whether that callback applied a parameter change
 };
 
 namespace
@@ -308,6 +309,7 @@ void LocalizerNodelet::onInit()
     params_changed_ = false;
   }
 
+  image_topic_ = nh.resolveName("image_preprocessed");  // before the diagnostics timer reads it
   std::string path;
   private_nh.param("map", path, std::string());
   if (path.empty())
@@ -336,12 +338,12 @@ void LocalizerNodelet::onInit()
     input_buffer_pub_ = private_nh.advertise<std_msgs::String>("input_buffer", 100);
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
   debug_pub_ = it_->advertise("localization_debug_image", 1);
-  load_map_srv_ = private_nh.advertiseService("load_map", &LocalizerNodelet::loadMapCb, this);
   const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
   params_sub_ = nh.subscribe(params_topic, 1, &LocalizerNodelet::paramsCb, this);
-  image_topic_ = nh.resolveName("image_preprocessed");
   if (map_)
     subscribeImages();
+  // After the subscription: a map loaded through it subscribes from the service's callback (loadMap).
+  load_map_srv_ = private_nh.advertiseService("load_map", &LocalizerNodelet::loadMapCb, this);
   // The same single-threaded queue as the images: the detector needs no lock.
   std::string problem;
   const MotionType motion_type = readMotionType(private_nh, MotionType::kNone, &problem);
@@ -569,6 +571,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     ~BusyClock() { *busy_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); }
   };
   const double busy_before_s = busy_s_;
+  const bool changed_before = changed_last_;
   const BusyClock busy{ &busy_s_ };
   bool changed = false;
   LocalizerParams requested;
@@ -581,6 +584,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
       changed = true;
     }
   }
+  changed_last_ = changed;
   if (changed)
   {
     params_ = requested;
@@ -679,10 +683,11 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     const double gap = (msg->header.stamp - last_stamp_).toSec();
     const bool while_busy = FrameGapCounts::whileBusy(busy_before_s, gap, result.missed_frames);
     if (while_busy)
-      NODELET_WARN_THROTTLE(5.0, "The localizer spent %.3f s on the frame before this one (a parameter change "
-                                 "measures the map's tables again): frames that came meanwhile were replaced in "
-                                 "its input queue of 1 and count as missed in the gap below",
-                            busy_before_s);
+      NODELET_WARN_THROTTLE(5.0, "The localizer spent %.3f s on the frame before this one%s: the frames of the "
+                                 "%.3f s gap that follows came meanwhile and were replaced in its input queue of 1",
+                            busy_before_s,
+                            changed_before ? " (it applied a parameter change: the map's tables measured again)" : "",
+                            gap);
     if (result.gap == FrameGap::kSearchedAgain)
       NODELET_WARN("A gap of %.3f s in the image stamps (%.3f s -> %.3f s), longer than the sequence window: "
                    "searching the whole map again",

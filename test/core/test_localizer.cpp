@@ -154,12 +154,16 @@ TEST(HomingAngle, FromShiftByHand)
 
 TEST(FrameGapCounts, CountsTheFramesOfAGapThatCameWhileTheLocalizerWasBusy)
 {
-  // A gap of 0.5 s with 4 frames missed: a frame every 0.1 s. Busy for 0.05 s on the frame before: no frame
-  // came meanwhile (the camera's gap); for 0.35 s: three did, and the input queue of 1 kept only the newest.
+  // A gap of 0.5 s with 4 frames missed: a frame every 0.1 s. With an input queue of 1 the frame taken after a
+  // busy spell is the newest that came during it, so a gap the localizer made is at most as long as the spell.
+  EXPECT_TRUE(arl::FrameGapCounts::whileBusy(0.5, 0.5, 4));    // the frames at 0.1-0.4 s replaced in the queue
+  EXPECT_TRUE(arl::FrameGapCounts::whileBusy(0.46, 0.5, 4));   // within half a period (0.05 s) of the gap
+  EXPECT_FALSE(arl::FrameGapCounts::whileBusy(0.44, 0.5, 4));
+  // Busy 0.35 s: the frame of 0.3 s came while it was busy and would have been taken at 0.35 s; it was not,
+  // so the camera (or what is upstream) lost it: not the localizer's gap. Nor after 0.05 s.
+  EXPECT_FALSE(arl::FrameGapCounts::whileBusy(0.35, 0.5, 4));
   EXPECT_FALSE(arl::FrameGapCounts::whileBusy(0.05, 0.5, 4));
-  EXPECT_TRUE(arl::FrameGapCounts::whileBusy(0.35, 0.5, 4));
-  EXPECT_FALSE(arl::FrameGapCounts::whileBusy(0.1, 0.2, 1));  // exactly one period: the next frame, not one lost
-  EXPECT_TRUE(arl::FrameGapCounts::whileBusy(1.3, 1.3, 12));
+  EXPECT_TRUE(arl::FrameGapCounts::whileBusy(1.3, 1.3, 12));  // a parameter change measuring the tables
   EXPECT_FALSE(arl::FrameGapCounts::whileBusy(1.0, 0.0, 0));  // no gap
   arl::FrameGapCounts counts;
   arl::LocalizationResult result;
@@ -246,10 +250,20 @@ TEST(Localizer, AVerticalSearchRunsThroughTheLocalizerAndOneBeyondTheRowsIsRefus
   const auto map = syntheticMap(40);
   arl::Localizer localizer(map, arl::LocalizerParams());
   arl::LocalizerParams too_far;
-  too_far.max_vertical_shift_px = 31;  // the most that 32 compared rows allow (one row compared at |v| = 31)
+  too_far.max_vertical_shift_px = 15;  // the most that 32 compared rows allow (17 rows compared at |v| = 15)
   EXPECT_NO_THROW(localizer.setParams(too_far));
-  too_far.max_vertical_shift_px = 32;
-  EXPECT_THROW(localizer.setParams(too_far), std::invalid_argument);
+  too_far.max_vertical_shift_px = 16;
+  try
+  {
+    localizer.setParams(too_far);
+    ADD_FAILURE() << "16 rows of 32 were taken";
+  }
+  catch (const std::invalid_argument& e)
+  {
+    EXPECT_NE(std::string::npos, std::string(e.what()).find("max_vertical_shift_px must be below half the compared "
+                                                            "rows (32), got 16"))
+        << e.what();
+  }
   // Each query is its keyframe moved down 1 row or up 1 row in turn (a camera that pitches): with V = 1 every
   // answer is the query's own keyframe, and its reported shift the query's (2 px right).
   arl::LocalizerParams pitching;
