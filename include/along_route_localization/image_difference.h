@@ -34,10 +34,11 @@ struct ShiftedDifference
 /// each shifted on its own: the cost is the sum of each band's smallest SAD (a camera beside the taught
 /// line sees near things, low in the image, move more than distant ones: parallax). The reported shift is
 /// still that of the whole strip.
-/// With `max_vertical_shift_px` V > 0 each band (or the whole strip) is also compared at every vertical
-/// offset v in [-V, V] (query row y against keyframe row y - v, over the rows where both are compared rows,
-/// per pixel), and each shift counts at its best v: a camera that pitches and rolls (a rover on rough
-/// ground) moves the image vertically. Costs (2V + 1) times the comparisons.
+/// With `max_vertical_shift_px` V > 0 (below half the compared rows) each band (or the whole strip) is also
+/// compared at every vertical offset v in [-V, V] (query row y against keyframe row y - v, over the rows
+/// where both are compared rows and at least half the band's, per pixel), and each shift counts at its best
+/// v: a camera that pitches and rolls (a rover on rough ground) moves the image vertically. Costs (2V + 1)
+/// times the comparisons.
 class ImageDifference
 {
 public:

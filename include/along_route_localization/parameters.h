@@ -131,8 +131,9 @@ std::string removedParameterSentence(const std::string& name);
 
 /// The names of the table close to `name` (a misspelling: one edit, or a name containing it), sorted.
 std::vector<std::string> similarParameterNames(const std::string& name);
-/// " (did you mean a b?)" with the similarParameterNames of `name`, or "" when there are none.
-std::string didYouMean(const std::string& name);
+/// " (did you mean a b?)" with the similarParameterNames of `name` (only the preprocessor's and the
+/// localizer's with `localizing_only`: what --set takes), or "" when there are none.
+std::string didYouMean(const std::string& name, bool localizing_only = false);
 
 /// Sets the field called `name` (a preprocessor or localizer parameter) from its text `value`. Returns
 /// false with *error set for an unknown name or a value that does not parse (ranges are checked later by

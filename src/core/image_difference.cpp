@@ -390,8 +390,8 @@ ShiftedDifference stripDifferenceVertical(const Strip& strip, int bands, int ver
     for (int v = -vertical; v <= vertical; ++v)
     {
       const int first = std::max(top, strip.first_row + v), last = std::min(bottom, strip.height + v);
-      if (last <= first)
-        continue;  // a band of fewer rows than |v|, at the edge: no row of it has a counterpart
+      if (2 * (last - first) < bottom - top)
+        continue;  // under half the band's rows have a counterpart: too few to weigh against the level rows
       const Strip part{ strip.width, 0, last - first, m };
       uint32_t sad[256];
       std::fill_n(sad, shifts, 0u);
@@ -466,8 +466,8 @@ ImageDifference::ImageDifference(int width, int height, int first_row, int max_s
     throw std::invalid_argument("ImageDifference: bands must be in [1, compared rows]");
   if (max_shift_px < 0 || max_shift_px > 127 || width - 2 * max_shift_px < 1)
     throw std::invalid_argument("ImageDifference: max_shift_px must be in [0, min(127, (width - 1) / 2)]");
-  if (max_vertical_shift_px < 0 || max_vertical_shift_px >= height - first_row)
-    throw std::invalid_argument("ImageDifference: max_vertical_shift_px must be in [0, compared rows - 1]");
+  if (max_vertical_shift_px < 0 || 2 * max_vertical_shift_px >= height - first_row)
+    throw std::invalid_argument("ImageDifference: max_vertical_shift_px must be below half the compared rows");
 }
 
 uint32_t ImageDifference::sadAtShift(const uint8_t* query, const uint8_t* keyframe, int shift_px) const

@@ -97,9 +97,9 @@ std::string LocalizerParams::validateForImages(const PreprocessingParams& images
   if (shift_bands > compared_rows)
     return "shift_bands must be at most the compared rows (" + std::to_string(compared_rows) + "), got " +
            std::to_string(shift_bands);
-  if (max_vertical_shift_px >= compared_rows)
-    return "max_vertical_shift_px must be below the compared rows (" + std::to_string(compared_rows) + "), got " +
-           std::to_string(max_vertical_shift_px);
+  if (2 * max_vertical_shift_px >= compared_rows)
+    return "max_vertical_shift_px must be below half the compared rows (" + std::to_string(compared_rows) +
+           "), got " + std::to_string(max_vertical_shift_px);
   return std::string();
 }
 

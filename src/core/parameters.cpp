@@ -163,7 +163,7 @@ std::vector<ParameterSpec> makeTable()
                         "Horizontal bands of the image each shifted on its own in the shift search (1: one shift; 2 "
                         "for a repeat beside the taught line)",
                         FIELD(localizer.shift_bands)));
-  t.push_back(numberRow("max_vertical_shift_px", loc, 0, 31, "px",
+  t.push_back(numberRow("max_vertical_shift_px", loc, 0, 63, "px",
                         "Vertical offsets [-V, V] at which each keyframe is also compared, px of the preprocessed "
                         "image (0: level only; 1-2 for a camera that pitches and rolls, a rover on rough ground)",
                         FIELD(localizer.max_vertical_shift_px)));
@@ -656,15 +656,16 @@ std::vector<std::string> similarParameterNames(const std::string& name)
   return similar;
 }
 
-std::string didYouMean(const std::string& name)
+std::string didYouMean(const std::string& name, bool localizing_only)
 {
-  const std::vector<std::string> similar = similarParameterNames(name);
-  if (similar.empty())
-    return "";
-  std::string text = " (did you mean";
-  for (const std::string& other : similar)
-    text += " " + other;
-  return text + "?)";
+  std::string text;
+  for (const std::string& other : similarParameterNames(name))
+  {
+    const ParameterGroup group = findParameter(other)->group;
+    if (!localizing_only || group == ParameterGroup::kPreprocessor || group == ParameterGroup::kLocalizer)
+      text += " " + other;
+  }
+  return text.empty() ? text : " (did you mean" + text + "?)";
 }
 
 bool applyParameter(const std::string& name, const std::string& value, PreprocessingParams* preprocessing,
@@ -678,7 +679,7 @@ bool applyParameter(const std::string& name, const std::string& value, Preproces
   }
   if (!spec || spec->group == ParameterGroup::kMapRecorder || spec->group == ParameterGroup::kRouteFollower)
   {
-    *error = "unknown parameter '" + name + "'" + (spec ? std::string() : didYouMean(name));
+    *error = "unknown parameter '" + name + "'" + (spec ? std::string() : didYouMean(name, true));
     return false;
   }
   ParameterSet params;

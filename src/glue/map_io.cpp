@@ -619,8 +619,9 @@ RouteMap readMap(const std::string& path, std::map<int, TaughtMotion>* motion)
                    (endsWith(path, ".active") ?
                         "; a recording was interrupted: `rosbag reindex " + path +
                             "` may recover the keyframes it had flushed" :
-                        "; was it copied only in part? (a map the recorder finished is complete, and an "
-                        "interrupted recording leaves MAP.active, which `rosbag reindex` may recover)"));
+                        "; was it copied only in part? Copy it again, or keep the keyframes before the cut with "
+                        "`rosbag reindex " + path + "` (a map the recorder finished is complete; an interrupted "
+                        "recording leaves MAP.active)"));
   }
   catch (const std::bad_alloc&)
   {

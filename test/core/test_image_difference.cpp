@@ -118,8 +118,24 @@ TEST(ImageDifference, AVerticalSearchMatchesAnImageMovedDownByARowByHand)
   // Moved up instead (the keyframe moved down against the query): v = -1 matches, by symmetry.
   EXPECT_FLOAT_EQ(0.0f, vertical.compare(keyframe, query).cost);
   EXPECT_GT(level.compare(keyframe, query).cost, 50.0f);
-  EXPECT_THROW(arl::ImageDifference(6, 3, 0, 1, false, 1, 3), std::invalid_argument);  // 3 rows compared
+  EXPECT_THROW(arl::ImageDifference(6, 3, 0, 1, false, 1, 2), std::invalid_argument);  // 2 of 3 rows: over half
   EXPECT_THROW(arl::ImageDifference(6, 3, 0, 1, false, 1, -1), std::invalid_argument);
+}
+
+TEST(ImageDifference, AVerticalSearchWeighsEachBandByItsRowsByHand)
+{
+  // 6 x 4, m = 1, two bands (rows 0-1, 2-3), V = 1. The keyframe is 0 everywhere and each query row a constant
+  // (10, 20, 30, 40), so a row's cost per pixel is its value at every shift. Band 0: v = 0 rows 0-1, 15; v = +1
+  // row 1 only (row 0 has no keyframe row above), 20; v = -1 rows 0-1, 15: best 15. Band 1: v = 0 and v = +1
+  // rows 2-3, 35; v = -1 row 2 only (row 3 would meet keyframe row 4), 30: best 30. Each band weighs half:
+  // 0.5 x 15 + 0.5 x 30 = 22.5. One band: v = -1 rows 0-2, 20; v = 0, 25; v = +1 rows 1-3, 30: best 20.
+  const uint8_t keyframe[24] = {};
+  uint8_t query[24];
+  for (int y = 0; y < 4; ++y)
+    std::fill(query + 6 * y, query + 6 * (y + 1), static_cast<uint8_t>(10 * (y + 1)));
+  EXPECT_FLOAT_EQ(22.5f, arl::ImageDifference(6, 4, 0, 1, false, 2, 1).compare(query, keyframe).cost);
+  EXPECT_FLOAT_EQ(20.0f, arl::ImageDifference(6, 4, 0, 1, false, 1, 1).compare(query, keyframe).cost);
+  EXPECT_FLOAT_EQ(25.0f, arl::ImageDifference(6, 4, 0, 1, false, 1, 0).compare(query, keyframe).cost);
 }
 
 TEST(ImageDifference, AVerticalSearchFindsTheShiftOfARandomImageMovedBothWays)

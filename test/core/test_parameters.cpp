@@ -66,6 +66,10 @@ TEST_F(ParameterFile, BooleansInEveryFormRosparamReads)
   EXPECT_EQ("unknown parameter 'no_such_parameter'", error);
   EXPECT_FALSE(arl::applyParameter("homing_gain", "3", &preprocessing, &localizer, &error));  // the follower's
   EXPECT_EQ("unknown parameter 'homing_gain'", error);
+  // Close only to a follower's name, which --set would refuse too: no suggestion there, one in a params file.
+  EXPECT_FALSE(arl::applyParameter("slow_factr", "0.5", &preprocessing, &localizer, &error));
+  EXPECT_EQ("unknown parameter 'slow_factr'", error);
+  EXPECT_EQ(" (did you mean slow_factor?)", arl::didYouMean("slow_factr"));
 }
 
 TEST(ParameterFileRead, AFolderIsRefusedAsUnreadable)
