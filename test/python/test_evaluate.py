@@ -298,6 +298,134 @@ class EvaluateEndToEndTest(unittest.TestCase):
         self.assertEqual(m["dark"]["queries"], 2)
 
 
+def localization_messages_available():
+    try:
+        import rosbag  # noqa: F401
+        import sensor_msgs.msg  # noqa: F401
+        from along_route_localization.msg import Localization  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+@unittest.skipUnless(localization_messages_available(),
+                     "needs the ROS Python modules and this package's messages (source the workspace)")
+class BagInputTest(unittest.TestCase):
+    """A run of the nodelets: the six queries above as 6 camera frames in a bag and their Localization
+    messages in another (query 4, no answer in the CSV, got none), matched by the camera stamp; scored as
+    the CSV."""
+
+    run_main = EvaluateEndToEndTest.run_main
+    score = EvaluateEndToEndTest.score
+
+    def tearDown(self):
+        shutil.rmtree(self.tmp)
+
+    def same_scores(self, bag_metrics, csv_metrics):
+        for key in ("queries", "no_answer", "within", "recall_at_100_precision", "average_precision", "homing"):
+            self.assertEqual(json.dumps(bag_metrics[key], sort_keys=True), json.dumps(csv_metrics[key], sort_keys=True),
+                             key)
+        self.assertAlmostEqual(bag_metrics["within"]["1"], 4 / 6)  # EvaluateEndToEndTest's hand-worked figures
+        self.assertAlmostEqual(bag_metrics["average_precision"], (1 / 2 + 2 / 3 + 3 / 4 + 4 / 5) / 6)
+
+    def setUp(self):
+        import rosbag
+        import rospy
+        from sensor_msgs.msg import Image
+        from along_route_localization.msg import Localization
+        self.tmp = tempfile.mkdtemp(prefix="test_evaluate_bags_")
+        self.results = os.path.join(self.tmp, "results.csv")
+        write(self.results, SIX_QUERIES)
+        self.query_bag = os.path.join(self.tmp, "repeat.bag")
+        self.localization_bag = os.path.join(self.tmp, "localization.bag")
+        stamps = [rospy.Time(10, 100000000 * i) for i in range(6)]
+        with rosbag.Bag(self.query_bag, "w") as bag:
+            for stamp in stamps:
+                image = Image(height=1, width=1, encoding="mono8", step=1, data=b"\x00")
+                image.header.stamp = stamp
+                bag.write("/camera/image_raw", image, stamp)
+        codes = {"initializing": 0, "tracking": 1, "lost": 2}
+        rows = [line.split(",") for line in SIX_QUERIES.strip().splitlines()[1:]]
+        with rosbag.Bag(self.localization_bag, "w") as bag:
+            for i, keyframe, confidence, shift, angle, status in rows:
+                if i == "4":
+                    continue  # no message for this frame
+                m = Localization(keyframe=int(keyframe), confidence=float(confidence), shift=float(shift),
+                                 homing_angle=float(angle), status=codes[status])
+                m.header.stamp = stamps[int(i)]
+                bag.write("/localization", m, stamps[int(i)])
+            stray = Localization(keyframe=3, confidence=0.5)
+            stray.header.stamp = rospy.Time(99)  # from another drive: matches no frame
+            bag.write("/localization", stray, rospy.Time(99))
+
+    def bags(self, *extra):
+        return ["--localization-bag", self.localization_bag, "--query-bag", self.query_bag] + list(extra)
+
+    def test_a_run_of_the_nodelets_scores_as_its_csv(self):
+        written = os.path.join(self.tmp, "written.csv")
+        m, out, _ = self.score(self.bags("--identity", "--write-results", written))
+        from_csv, _, _ = self.score([self.results, "--identity"])
+        self.same_scores(m, from_csv)
+        self.assertIn("evaluate: 5 of 6 query frames have a Localization message; 1 messages match no frame of "
+                      + self.query_bag, out)
+        self.assertEqual(m["results"], {"localization_bag": self.localization_bag, "query_bag": self.query_bag})
+        with open(written) as f:
+            lines = f.read().splitlines()
+        self.assertEqual(lines[0], "query_index,keyframe,confidence,shift_px,homing_angle_rad,status")
+        self.assertEqual(lines[5], "4,-1,0.0,0.0,0.0,no_message")
+        self.assertTrue(lines[3].startswith("2,5,0.949999") and lines[3].endswith(",lost"), lines[3])
+        # The written file scores the same as the bags.
+        again, _, _ = self.score([written, "--identity"])
+        self.same_scores(again, from_csv)
+
+    def test_topics_are_found_or_named(self):
+        import rosbag
+        from sensor_msgs.msg import Image
+        with rosbag.Bag(self.query_bag, "a") as bag:
+            image = Image(height=1, width=1, encoding="mono8", step=1, data=b"\x00")
+            bag.write("/other_camera/image_raw", image, image.header.stamp)
+        code, _, err = self.run_main(self.bags("--identity"))
+        self.assertEqual(code, 2)
+        self.assertIn("has 2 sensor_msgs/Image topics (/camera/image_raw, /other_camera/image_raw): name one with "
+                      "--camera-topic", err)
+        m, _, _ = self.score(self.bags("--identity", "--camera-topic", "/camera/image_raw"))
+        self.assertAlmostEqual(m["within"]["1"], 4 / 6)
+        code, _, err = self.run_main(self.bags("--identity", "--camera-topic", "/camera/image_raw",
+                                               "--localization-topic", "/camera/image_raw"))
+        self.assertEqual(code, 2)
+        self.assertIn("localization.bag has no topic /camera/image_raw (has /localization)", err)
+        code, _, err = self.run_main(["--identity", "--localization-bag", self.query_bag, "--query-bag", self.query_bag,
+                                      "--camera-topic", "/camera/image_raw", "--localization-topic", "/camera/image_raw"])
+        self.assertEqual(code, 2)
+        self.assertIn("topic /camera/image_raw holds sensor_msgs/Image, not along_route_localization/Localization", err)
+
+    def test_frames_with_one_stamp_are_refused(self):
+        import rosbag
+        import rospy
+        from sensor_msgs.msg import Image
+        with rosbag.Bag(self.query_bag, "a") as bag:
+            image = Image(height=1, width=1, encoding="mono8", step=1, data=b"\x00")
+            image.header.stamp = rospy.Time(10, 200000000)  # frame 2's stamp again
+            bag.write("/camera/image_raw", image, image.header.stamp)
+        code, _, err = self.run_main(self.bags("--identity"))
+        self.assertEqual(code, 2)
+        self.assertIn("frames 2 and 3 of /camera/image_raw have the same stamp", err)  # the bag is read in time order
+
+    def test_either_a_csv_or_both_bags(self):
+        for args, message in ((["--identity", "--query-bag", self.query_bag],
+                               "--localization-bag and --query-bag go together"),
+                              ([self.results, "--identity"] + self.bags(),
+                               "give either results.csv or --localization-bag with --query-bag"),
+                              (["--identity"], "give either results.csv or --localization-bag with --query-bag"),
+                              ([self.results, "--identity", "--write-results", os.path.join(self.tmp, "x.csv")],
+                               "--write-results go with --localization-bag")):
+            with contextlib.redirect_stderr(io.StringIO()) as err:
+                with self.assertRaises(SystemExit) as caught:
+                    evaluate.main(args)
+            self.assertEqual(caught.exception.code, 2, args)
+            self.assertIn(message, err.getvalue())
+
+
 class IndexListTest(unittest.TestCase):
     def test_ranges(self):
         self.assertEqual(evaluate.parse_index_list("3,7,10-12"), [3, 7, 10, 11, 12])
