@@ -72,7 +72,6 @@ private:
   /// Kinds of reason not to localize a frame (DroppedFrames logs each kind apart).
   enum Drop
   {
-    kNoMap,
     kRefusedMap,
     kEncoding,
     kSize,
@@ -338,7 +337,7 @@ void LocalizerNodelet::onInit()
     input_buffer_pub_ = private_nh.advertise<std_msgs::String>("input_buffer", 100);
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
   debug_pub_ = it_->advertise("localization_debug_image", 1);
-  const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
+  const std::string params_topic = preprocessingParamsTopic(image_topic_);
   params_sub_ = nh.subscribe(params_topic, 1, &LocalizerNodelet::paramsCb, this);
   if (map_)
     subscribeImages();
@@ -357,7 +356,7 @@ void LocalizerNodelet::onInit()
     NODELET_INFO("Whether the robot stood still between frames: from %s (%s)", motion_sub_.getTopic().c_str(),
                  motionTypeName(motion_type).c_str());
   NODELET_INFO("Localizing %s against %s; preprocessing parameters checked against %s",
-               nh.resolveName("image_preprocessed").c_str(), map_ ? map_path_.c_str() : "(no map yet)",
+               image_topic_.c_str(), map_ ? map_path_.c_str() : "(no map yet)",
                params_topic.c_str());
 }
 
@@ -602,12 +601,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
     }
   }
 
-  if (!map_)
-  {
-    dropFrame(kNoMap, map_error_);
-    return;
-  }
-  if (!localizer_)
+  if (!localizer_)  // (no frame comes without a map: the images are subscribed from the first map on)
   {
     dropFrame(kRefusedMap, refusal_);
     return;
@@ -782,9 +776,7 @@ void LocalizerNodelet::dropFrame(Drop kind, const std::string& sentence)
 {
   if (!dropped_.drop(kind, sentence))
     return;
-  if (kind == kNoMap)  // expected while a map is being taught or loaded
-    NODELET_WARN("Dropping frames: %s", sentence.c_str());
-  else if (kind == kRefusedMap)
+  if (kind == kRefusedMap)
     NODELET_ERROR("Dropping frames: %s", sentence.c_str());
   else
     NODELET_ERROR("Dropping %s", sentence.c_str());
