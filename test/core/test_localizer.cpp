@@ -133,6 +133,20 @@ RunSummary runWinter(const std::shared_ptr<arl::RouteMap>& map, const std::vecto
   return summary;
 }
 
+/// What setParams said when it refused `params` (the localizer keeps its parameters); "" when it took them.
+std::string refusalOf(arl::Localizer* localizer, const arl::LocalizerParams& params)
+{
+  try
+  {
+    localizer->setParams(params);
+  }
+  catch (const std::invalid_argument& e)
+  {
+    return e.what();
+  }
+  return "";
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------- homing angle
@@ -211,16 +225,9 @@ TEST(Localizer, ShiftBandsRunThroughTheLocalizerAndTooManyAreRefused)
   arl::Localizer under_sky(sky_map, arl::LocalizerParams());
   arl::LocalizerParams too_many;
   too_many.shift_bands = 14;
-  try
-  {
-    under_sky.setParams(too_many);
-    ADD_FAILURE() << "14 bands of 13 rows were taken";
-  }
-  catch (const std::invalid_argument& e)
-  {
-    EXPECT_NE(std::string::npos, std::string(e.what()).find("shift_bands must be at most the compared rows (13), got 14"))
-        << e.what();
-  }
+  const std::string too_many_bands = refusalOf(&under_sky, too_many);
+  EXPECT_NE(std::string::npos, too_many_bands.find("shift_bands must be at most the compared rows (13), got 14"))
+      << "14 bands of 13 rows: '" << too_many_bands << "'";
   EXPECT_EQ(1, under_sky.params().shift_bands);
   too_many.shift_bands = 13;  // a band per row
   under_sky.setParams(too_many);
@@ -253,17 +260,10 @@ TEST(Localizer, AVerticalSearchRunsThroughTheLocalizerAndOneBeyondTheRowsIsRefus
   too_far.max_vertical_shift_px = 15;  // the most that 32 compared rows allow (17 rows compared at |v| = 15)
   EXPECT_NO_THROW(localizer.setParams(too_far));
   too_far.max_vertical_shift_px = 16;
-  try
-  {
-    localizer.setParams(too_far);
-    ADD_FAILURE() << "16 rows of 32 were taken";
-  }
-  catch (const std::invalid_argument& e)
-  {
-    EXPECT_NE(std::string::npos, std::string(e.what()).find("max_vertical_shift_px must be below half the compared "
-                                                            "rows (32), got 16"))
-        << e.what();
-  }
+  const std::string too_far_refused = refusalOf(&localizer, too_far);
+  EXPECT_NE(std::string::npos, too_far_refused.find("max_vertical_shift_px must be below half the compared rows "
+                                                    "(32), got 16"))
+      << "16 rows of 32: '" << too_far_refused << "'";
   // Each query is its keyframe moved down 1 row or up 1 row in turn (a camera that pitches): with V = 1 every
   // answer is the query's own keyframe, and its reported shift the query's (2 px right).
   arl::LocalizerParams pitching;
