@@ -170,6 +170,53 @@ TEST(OnlineDtw, AccumulatedRowMatchesHandRecursion)
     EXPECT_NEAR(expected[i], accumulated[i], 1e-5) << "keyframe " << i;
 }
 
+TEST(OnlineDtw, WideWindowsSplitIntoParallelChunksGiveTheHandRecursion)
+{
+  // A window of 4096 columns or more (a global search) is split into column chunks run on several
+  // threads; a path may cross from one chunk into the next. Blocks of AccumulatedRowMatchesHandRecursion's
+  // 10 keyframes are laid across such a window, every 26 columns, each after 16 columns of cost 1000
+  // (8 rows x (1,2) steps reach no further back), so nothing outside a block can be cheaper than its own
+  // paths: each block's accumulated row must be the hand-worked one, and the path to its end, chosen
+  // alone, the laid-out one. Shifting the blocks one column at a time over a whole period puts every
+  // chunk boundary inside a block, at every position of it.
+  const float expected[10] = { 8.8f / 8, 7.5f / 8, 5.2f / 8, 3.6f / 8, 3.0f / 8,
+                               2.35f / 8, 2.05f / 8, 1.1f / 8, 0.1f / 8, 1.15f / 8 };
+  const int width = 8200, block = 10, padding = 16, period = block + padding;
+  const std::vector<std::vector<float>> hand = onesWithZeroPath(block, kStopAndGo);
+  arl::OnlineDtw dtw(handParams(2));
+  for (int phase = 0; phase < period; ++phase)
+  {
+    std::vector<std::vector<float>> matrix(kStopAndGo.size(), std::vector<float>(width, 1000.0f));
+    std::vector<int> offsets;
+    for (int offset = phase + padding; offset + block <= width; offset += period)
+    {
+      offsets.push_back(offset);
+      for (size_t r = 0; r < matrix.size(); ++r)
+        std::copy(hand[r].begin(), hand[r].end(), matrix[r].begin() + offset);
+    }
+    arl::CostRingBuffer buffer(8, width);
+    appendRows(buffer, matrix);
+    for (bool backtrack : { false, true })
+    {
+      dtw.match(buffer, 0, width, 8, backtrack);
+      const std::vector<float> accumulated = dtw.lastAccumulated();
+      ASSERT_EQ(static_cast<size_t>(width), accumulated.size());
+      for (int offset : offsets)
+        for (int i = 0; i < block; ++i)
+          ASSERT_NEAR(expected[i], accumulated[offset + i], 1e-5)
+              << "phase " << phase << ", block at " << offset << ", keyframe " << i << ", backtrack " << backtrack;
+    }
+    for (int offset : offsets)
+    {
+      const arl::SequenceMatch match = dtw.match(buffer, 0, width, 8, true, nullptr, offset + 8, offset + 8);
+      ASSERT_EQ(offset + 8, match.keyframe) << "phase " << phase;
+      ASSERT_EQ(kStopAndGo.size(), match.path.size());
+      for (size_t r = 0; r < kStopAndGo.size(); ++r)
+        ASSERT_EQ(offset + kStopAndGo[r], match.path[r]) << "phase " << phase << ", block at " << offset << ", row " << r;
+    }
+  }
+}
+
 TEST(OnlineDtw, APathStartFixesWhereEveryPathBegins)
 {
   // twoPaths: A = 0 1 2 3 (zeros), B = 17 18 19 20 (zeros, 0.5 in the newest row). Free to start
