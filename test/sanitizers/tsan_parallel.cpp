@@ -1,9 +1,9 @@
 // ThreadSanitizer driver for the core's parallel global search (built and run by scripts/run_sanitizers.sh).
 //
 // cv::parallel_for_ splits ImageDifference::compareMany and the census branch of Localizer::computeRow
-// across threads, but only from 512 keyframes on, and no map in test_core is that large: this program
-// searches maps of 600..1500 keyframes with params.parallel = true and checks every result against the
-// serial search.
+// across threads from 512 keyframes on, and the map's set-up statistics and the online DTW's window from
+// 4096 on. No localizer in test_core has so large a map: this program searches maps of 600..4200
+// keyframes with params.parallel = true and checks every result against the serial search.
 //
 // OpenCV on Debian runs parallel_for_ on TBB, whose task hand-over is lock-free code that is not
 // instrumented: ThreadSanitizer would see no happens-before edge between the caller and the workers and
@@ -207,6 +207,13 @@ TEST(ParallelSearch, LocalizerSadSearchEqualsTheSerialSearch)
 TEST(ParallelSearch, LocalizerCensusSearchEqualsTheSerialSearch)
 {
   expectParallelEqualsSerial(arl::CostFunction::kCensus, 600, 16);
+}
+
+// From 4096 keyframes on, the set-up's per-keyframe statistics and the global search's online DTW (its
+// window split into column chunks) run on several threads too.
+TEST(ParallelSearch, LocalizerOnAMapOf4096KeyframesOrMoreEqualsTheSerialSearch)
+{
+  expectParallelEqualsSerial(arl::CostFunction::kSad, 4200, 12);
 }
 
 }  // namespace
