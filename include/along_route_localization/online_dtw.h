@@ -101,6 +101,10 @@ public:
   explicit OnlineDtw(const DtwParams& params = DtwParams());
   void setParams(const DtwParams& params);
   const DtwParams& params() const { return params_; }
+  /// true (the default): a window of 4096 keyframes or more (a global search on a big map) is split into
+  /// column chunks run by cv::parallel_for_; false: every window in one piece on the calling thread. The
+  /// result is the same either way.
+  void setParallel(bool parallel) { parallel_ = parallel; }
 
   /// Uses the newest min(rows, buffer.size()) rows. With `backtrack` the best path is returned too.
   /// Reuses internal buffers: no allocation once they have grown to the largest band seen.
@@ -142,6 +146,7 @@ private:
   void accumulateColumns(const CostRingBuffer& buffer, const Window& window, int begin, int end, Columns& scratch);
 
   DtwParams params_;
+  bool parallel_ = true;
   std::vector<Columns> columns_;  // one per chunk (wide windows are split over threads)
   std::vector<float> final_move_, final_stop_, final_fast_, last_row_;
   // Backtracking, rows x width per state (M, S, F): bits 0-4 the step k, bits 5-6 the state it came from (1-3).

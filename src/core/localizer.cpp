@@ -238,6 +238,7 @@ void Localizer::setParams(const LocalizerParams& params)
                                    params.homing_max_vertical_shift_px != params_.homing_max_vertical_shift_px;
   params_ = params;
   dtw_.setParams(params_.dtw);
+  dtw_.setParallel(params_.parallel);
   PosteriorParams posterior = params_.posterior;
   posterior.max_step = params_.dtw.max_step;
   posterior_.setParams(posterior);

@@ -332,8 +332,9 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   }
 
   // Two chunks per thread, so a thread slowed by other work does not hold up the rest.
-  const int chunks =
-      width >= kParallelMinWidth ? std::max(1, std::min(2 * cv::getNumThreads(), width / kMinChunkWidth)) : 1;
+  const int chunks = parallel_ && width >= kParallelMinWidth ?
+                         std::max(1, std::min(2 * cv::getNumThreads(), width / kMinChunkWidth)) :
+                         1;
   if (static_cast<int>(columns_.size()) < chunks)
     columns_.resize(chunks);  // only grows: shrinking would free the chunks' buffers
   const auto run = [&](const cv::Range& range) {

@@ -3054,11 +3054,7 @@ TEST(Localizer, OnAShortMapEveryWindowHasAChanceMargin)
   // cover most of the map, so few or no stretches leave a wrong place to measure chance on. Such a window
   // takes the margin of the next shorter one: every window's margin is positive, as on a long map, instead
   // of 0 (with 0, any place that stands out contradicts the track, however little it beats it by).
-  // One thread: the 1000-keyframe map's whole-map rows would run on OpenCV's thread pool, which
-  // ThreadSanitizer does not see synchronize (scripts/run_sanitizers.sh checks the parallel search with an
-  // instrumented backend, tsan_parallel); the margins are the same either way.
   arl::LocalizerParams params;
-  params.parallel = false;
   for (const int n : { 100, 149, 1000 })
   {
     arl::Localizer localizer(syntheticMap(n), params);

@@ -170,50 +170,112 @@ TEST(OnlineDtw, AccumulatedRowMatchesHandRecursion)
     EXPECT_NEAR(expected[i], accumulated[i], 1e-5) << "keyframe " << i;
 }
 
+namespace
+{
+
+// Blocks of `hand` (rows x block columns) laid every block + 16 columns across an 8200-column window of
+// cost 1000, starting `phase` columns in: the offsets of the blocks. A path over 8 rows reaches at most
+// 7 x 2 = 14 columns back and cannot step over 2 columns of 1000, so no path from outside a block is
+// cheaper than the block's own.
+std::vector<int> layBlocks(const std::vector<std::vector<float>>& hand, int phase, int width,
+                           arl::CostRingBuffer* buffer)
+{
+  const int block = static_cast<int>(hand[0].size()), padding = 16;
+  std::vector<std::vector<float>> matrix(hand.size(), std::vector<float>(width, 1000.0f));
+  std::vector<int> offsets;
+  for (int offset = phase + padding; offset + block <= width; offset += block + padding)
+  {
+    offsets.push_back(offset);
+    for (size_t r = 0; r < matrix.size(); ++r)
+      std::copy(hand[r].begin(), hand[r].end(), matrix[r].begin() + offset);
+  }
+  appendRows(*buffer, matrix);
+  return offsets;
+}
+
+}  // namespace
+
 TEST(OnlineDtw, WideWindowsSplitIntoParallelChunksGiveTheHandRecursion)
 {
-  // A window of 4096 columns or more (a global search) is split into column chunks run on several
-  // threads; a path may cross from one chunk into the next. Blocks of AccumulatedRowMatchesHandRecursion's
-  // 10 keyframes are laid across such a window, every 26 columns, each after 16 columns of cost 1000
-  // (8 rows x (1,2) steps reach no further back), so nothing outside a block can be cheaper than its own
-  // paths: each block's accumulated row must be the hand-worked one, and the path to its end, chosen
-  // alone, the laid-out one. Shifting the blocks one column at a time over a whole period puts every
-  // chunk boundary inside a block, at every position of it.
+  // A window of 4096 columns or more (a global search) is split into column chunks, run on several
+  // threads; a chunk starts its recursion 14 columns (rows - 1 steps of s = 2) before its first column.
+  // Blocks of hand-worked costs are laid across such a window (layBlocks), shifted one column at a time
+  // over a whole period, so every chunk boundary falls at every position inside a block:
+  //  - AccumulatedRowMatchesHandRecursion's 8 x 10 matrix: each block's accumulated row is the hand one;
+  //  - zeros on 0 2 4 ... 14 (ones elsewhere, 8 x 15): the only path that reaches column 14 in 8 rows
+  //    takes seven (1,2) steps from column 0, 7 x 0.05 = 0.35, and is the path to that end. A chunk that
+  //    starts its recursion even one column late does not have it.
   const float expected[10] = { 8.8f / 8, 7.5f / 8, 5.2f / 8, 3.6f / 8, 3.0f / 8,
                                2.35f / 8, 2.05f / 8, 1.1f / 8, 0.1f / 8, 1.15f / 8 };
-  const int width = 8200, block = 10, padding = 16, period = block + padding;
-  const std::vector<std::vector<float>> hand = onesWithZeroPath(block, kStopAndGo);
+  const int width = 8200;
+  std::vector<int> diagonal;
+  for (int r = 0; r < 8; ++r)
+    diagonal.push_back(2 * r);
   arl::OnlineDtw dtw(handParams(2));
-  for (int phase = 0; phase < period; ++phase)
+  for (int phase = 0; phase < 10 + 16; ++phase)
   {
-    std::vector<std::vector<float>> matrix(kStopAndGo.size(), std::vector<float>(width, 1000.0f));
-    std::vector<int> offsets;
-    for (int offset = phase + padding; offset + block <= width; offset += period)
-    {
-      offsets.push_back(offset);
-      for (size_t r = 0; r < matrix.size(); ++r)
-        std::copy(hand[r].begin(), hand[r].end(), matrix[r].begin() + offset);
-    }
     arl::CostRingBuffer buffer(8, width);
-    appendRows(buffer, matrix);
+    const std::vector<int> offsets = layBlocks(onesWithZeroPath(10, kStopAndGo), phase, width, &buffer);
     for (bool backtrack : { false, true })
     {
       dtw.match(buffer, 0, width, 8, backtrack);
       const std::vector<float> accumulated = dtw.lastAccumulated();
       ASSERT_EQ(static_cast<size_t>(width), accumulated.size());
       for (int offset : offsets)
-        for (int i = 0; i < block; ++i)
+        for (int i = 0; i < 10; ++i)
           ASSERT_NEAR(expected[i], accumulated[offset + i], 1e-5)
               << "phase " << phase << ", block at " << offset << ", keyframe " << i << ", backtrack " << backtrack;
     }
+  }
+  for (int phase = 0; phase < 15 + 16; ++phase)
+  {
+    arl::CostRingBuffer buffer(8, width);
+    const std::vector<int> offsets = layBlocks(onesWithZeroPath(15, diagonal), phase, width, &buffer);
+    dtw.match(buffer, 0, width, 8, false);
+    const std::vector<float> accumulated = dtw.lastAccumulated();
+    for (int offset : offsets)
+      ASSERT_NEAR(0.35f / 8, accumulated[offset + 14], 1e-6) << "phase " << phase << ", block at " << offset;
     for (int offset : offsets)
     {
-      const arl::SequenceMatch match = dtw.match(buffer, 0, width, 8, true, nullptr, offset + 8, offset + 8);
-      ASSERT_EQ(offset + 8, match.keyframe) << "phase " << phase;
-      ASSERT_EQ(kStopAndGo.size(), match.path.size());
-      for (size_t r = 0; r < kStopAndGo.size(); ++r)
-        ASSERT_EQ(offset + kStopAndGo[r], match.path[r]) << "phase " << phase << ", block at " << offset << ", row " << r;
+      const arl::SequenceMatch match = dtw.match(buffer, 0, width, 8, true, nullptr, offset + 14, offset + 14);
+      ASSERT_EQ(offset + 14, match.keyframe) << "phase " << phase;
+      ASSERT_EQ(diagonal.size(), match.path.size());
+      for (size_t r = 0; r < diagonal.size(); ++r)
+        ASSERT_EQ(offset + diagonal[r], match.path[r]) << "phase " << phase << ", block at " << offset << ", row " << r;
     }
+  }
+}
+
+TEST(OnlineDtw, WideWindowsGiveTheSameInParallelChunksAsInOnePiece)
+{
+  // Random costs, the default step costs and column centering: split into chunks (setParallel(true), the
+  // default) or in one piece, the accumulated row, the match, its margins and its path are the same bit
+  // for bit (every cell is computed by the same operations either way).
+  const int width = 9000, rows = 10;
+  arl::CostRingBuffer buffer(rows, width);
+  unsigned state = 12345;
+  for (int r = 0; r < rows; ++r)
+  {
+    float* row = buffer.appendRow(0, width, r == 4);
+    for (int j = 0; j < width; ++j)
+    {
+      state = state * 1103515245u + 12345u;
+      row[j] = static_cast<float>((state >> 8) % 1000) / 500.0f;
+    }
+  }
+  arl::OnlineDtw chunked, whole;
+  whole.setParallel(false);
+  for (int used_rows : { rows, 3 })
+  {
+    const arl::SequenceMatch a = chunked.match(buffer, 0, width, used_rows, true);
+    const arl::SequenceMatch b = whole.match(buffer, 0, width, used_rows, true);
+    EXPECT_EQ(b.keyframe, a.keyframe);
+    EXPECT_EQ(b.cost, a.cost);
+    EXPECT_EQ(b.second_cost, a.second_cost);
+    EXPECT_EQ(b.path, a.path);
+    ASSERT_EQ(whole.lastAccumulated().size(), chunked.lastAccumulated().size());
+    for (int j = 0; j < width; ++j)
+      ASSERT_EQ(whole.lastAccumulated()[j], chunked.lastAccumulated()[j]) << "keyframe " << j << ", rows " << used_rows;
   }
 }
 
