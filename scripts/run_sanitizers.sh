@@ -6,8 +6,8 @@
 #  2. TSan, built in WORKDIR/ws_tsan: test_map_io and two drivers for the threaded parts:
 #     test/sanitizers/tsan_parallel.cpp (the parallel global search, cv::parallel_for_) and
 #     test/sanitizers/tsan_map_recorder.cpp (the map recorder nodelet's writer thread; own rosmaster).
-#     Not test_core: its parallel tests run on OpenCV's TBB pool, whose hand-over ThreadSanitizer cannot
-#     see (it reports races that are not there), and its other tests run on one thread.
+#     Not test_core: what it runs in parallel (its own parallel branches, OpenCV's resize) runs on
+#     OpenCV's TBB pool, whose hand-over ThreadSanitizer cannot see (it reports races that are not there).
 #  3. libFuzzer (clang, ASan + UBSan): test/fuzz/fuzz_map_loader.cpp (readMap) and
 #     test/fuzz/fuzz_image_input.cpp (Preprocessor + Localizer), FUZZ_SECONDS (60) each, both at once,
 #     from seeds written at run time by test/fuzz/fuzz_seeds.cpp. Installs clang when it is missing and
@@ -135,7 +135,7 @@ if build_ws "$ws_tsan" "$tsan_flags" test_map_io along_route_localization_nodele
     parallel_driver=true
   else
     echo "  SKIP tsan parallel search: OpenCV $(pkg-config --modversion opencv4) has no pluggable parallel_for_" \
-         "backend (needs 4.5.2); the normal tests check its results against the serial search"
+         "backend (needs 4.5.2); test_core checks compareMany's and the online DTW's parallel results"
     skipped+=("tsan parallel search (OpenCV < 4.5.2)")
   fi
   drivers_ok=true
