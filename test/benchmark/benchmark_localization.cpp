@@ -466,6 +466,33 @@ void BM_DtwMatch(benchmark::State& state)
 }
 BENCHMARK(BM_DtwMatch)->ArgNames({ "band" })->Arg(81)->Unit(benchmark::kMicrosecond);
 
+// The DTW of a global search: K = 30 rows over the whole map, backtracked, its window split into column
+// chunks on the cores (parallel 1, the default) or in one piece (parallel 0; the result is the same).
+void BM_DtwWholeMap(benchmark::State& state)
+{
+  const int n = static_cast<int>(state.range(0));
+  const arl::LocalizerParams params = benchmarkLocalizerParams();
+  const int rows = params.ring_buffer_rows;
+  arl::CostRingBuffer ring(rows, n);
+  std::mt19937 rng(kSeed);
+  std::uniform_real_distribution<float> cost(-2.0f, 2.0f);
+  for (int r = 0; r < rows; ++r)
+  {
+    float* row = ring.appendRow(0, n);
+    for (int i = 0; i < n; ++i)
+      row[i] = cost(rng);
+  }
+  arl::OnlineDtw dtw(params.dtw);
+  dtw.setParallel(state.range(1) != 0);
+  for (auto _ : state)
+  {
+    arl::SequenceMatch match = dtw.match(ring, 0, n, rows, true);
+    benchmark::DoNotOptimize(match);
+  }
+  state.SetItemsProcessed(static_cast<int64_t>(state.iterations()) * n * rows);
+}
+BENCHMARK(BM_DtwWholeMap)->Apply(mapSizeParallelArgs)->UseRealTime()->Unit(benchmark::kMillisecond);
+
 // ------------------------------------------------------------------------------------------------
 // Steps 2-5: Localizer::process while tracking along the route.
 
