@@ -128,6 +128,8 @@ public:
 
   /// Accumulated cost row of the last match() (per end keyframe, divided by rows), for display.
   const std::vector<float>& lastAccumulated() const { return last_row_; }
+  /// The column chunks the last match() ran in (1: one piece).
+  int lastChunks() const { return last_chunks_; }
 
 private:
   /// The columns [lo, lo + width) a match looks at, and how.
@@ -147,6 +149,7 @@ private:
 
   DtwParams params_;
   bool parallel_ = true;
+  int last_chunks_ = 0;
   std::vector<Columns> columns_;  // one per chunk (wide windows are split over threads)
   std::vector<float> final_move_, final_stop_, final_fast_, last_row_;
   // Backtracking, rows x width per state (M, S, F): bits 0-4 the step k, bits 5-6 the state it came from (1-3).

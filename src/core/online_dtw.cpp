@@ -335,6 +335,7 @@ SequenceMatch OnlineDtw::match(const CostRingBuffer& buffer, int first_end, int 
   const int chunks = parallel_ && width >= kParallelMinWidth ?
                          std::max(1, std::min(2 * cv::getNumThreads(), width / kMinChunkWidth)) :
                          1;
+  last_chunks_ = chunks;
   if (static_cast<int>(columns_.size()) < chunks)
     columns_.resize(chunks);  // only grows: shrinking would free the chunks' buffers
   const auto run = [&](const cv::Range& range) {

@@ -198,19 +198,17 @@ std::vector<int> layBlocks(const std::vector<std::vector<float>>& hand, int phas
 TEST(OnlineDtw, WideWindowsSplitIntoParallelChunksGiveTheHandRecursion)
 {
   // A window of 4096 columns or more (a global search) is split into column chunks, run on several
-  // threads; a chunk starts its recursion 14 columns (rows - 1 steps of s = 2) before its first column.
-  // Blocks of hand-worked costs are laid across such a window (layBlocks), shifted one column at a time
-  // over a whole period, so every chunk boundary falls at every position inside a block:
-  //  - AccumulatedRowMatchesHandRecursion's 8 x 10 matrix: each block's accumulated row is the hand one;
-  //  - zeros on 0 2 4 ... 14 (ones elsewhere, 8 x 15): the only path that reaches column 14 in 8 rows
-  //    takes seven (1,2) steps from column 0, 7 x 0.05 = 0.35, and is the path to that end. A chunk that
-  //    starts its recursion even one column late does not have it.
+  // threads; a chunk starts its recursion (rows - 1) x s columns before its first column. Blocks of
+  // hand-worked costs are laid across such a window (layBlocks), shifted one column at a time over a
+  // whole period, so every chunk boundary falls at every position inside a block:
+  //  - AccumulatedRowMatchesHandRecursion's 8 x 10 matrix (s = 2): each block's accumulated row is the
+  //    hand one, and the path to its end 8, chosen alone, is kStopAndGo (stops, moves and skips);
+  //  - zeros on 0, s, 2s ... 7s (ones elsewhere, 8 x (7s + 1)), s = 2 and 3: the only path that reaches
+  //    column 7s in 8 rows takes seven (1,s) steps from column 0, each paying (s - 1) x 0.05, and is the
+  //    path to that end. A chunk that starts its recursion even one column late does not have it.
   const float expected[10] = { 8.8f / 8, 7.5f / 8, 5.2f / 8, 3.6f / 8, 3.0f / 8,
                                2.35f / 8, 2.05f / 8, 1.1f / 8, 0.1f / 8, 1.15f / 8 };
   const int width = 8200;
-  std::vector<int> diagonal;
-  for (int r = 0; r < 8; ++r)
-    diagonal.push_back(2 * r);
   arl::OnlineDtw dtw(handParams(2));
   for (int phase = 0; phase < 10 + 16; ++phase)
   {
@@ -219,6 +217,7 @@ TEST(OnlineDtw, WideWindowsSplitIntoParallelChunksGiveTheHandRecursion)
     for (bool backtrack : { false, true })
     {
       dtw.match(buffer, 0, width, 8, backtrack);
+      ASSERT_GT(dtw.lastChunks(), 1) << "the window was not split";
       const std::vector<float> accumulated = dtw.lastAccumulated();
       ASSERT_EQ(static_cast<size_t>(width), accumulated.size());
       for (int offset : offsets)
@@ -226,22 +225,43 @@ TEST(OnlineDtw, WideWindowsSplitIntoParallelChunksGiveTheHandRecursion)
           ASSERT_NEAR(expected[i], accumulated[offset + i], 1e-5)
               << "phase " << phase << ", block at " << offset << ", keyframe " << i << ", backtrack " << backtrack;
     }
-  }
-  for (int phase = 0; phase < 15 + 16; ++phase)
-  {
-    arl::CostRingBuffer buffer(8, width);
-    const std::vector<int> offsets = layBlocks(onesWithZeroPath(15, diagonal), phase, width, &buffer);
-    dtw.match(buffer, 0, width, 8, false);
-    const std::vector<float> accumulated = dtw.lastAccumulated();
-    for (int offset : offsets)
-      ASSERT_NEAR(0.35f / 8, accumulated[offset + 14], 1e-6) << "phase " << phase << ", block at " << offset;
     for (int offset : offsets)
     {
-      const arl::SequenceMatch match = dtw.match(buffer, 0, width, 8, true, nullptr, offset + 14, offset + 14);
-      ASSERT_EQ(offset + 14, match.keyframe) << "phase " << phase;
-      ASSERT_EQ(diagonal.size(), match.path.size());
-      for (size_t r = 0; r < diagonal.size(); ++r)
-        ASSERT_EQ(offset + diagonal[r], match.path[r]) << "phase " << phase << ", block at " << offset << ", row " << r;
+      const arl::SequenceMatch match = dtw.match(buffer, 0, width, 8, true, nullptr, offset + 8, offset + 8);
+      ASSERT_EQ(offset + 8, match.keyframe) << "phase " << phase;
+      ASSERT_EQ(kStopAndGo.size(), match.path.size());
+      for (size_t r = 0; r < kStopAndGo.size(); ++r)
+        ASSERT_EQ(offset + kStopAndGo[r], match.path[r]) << "phase " << phase << ", block at " << offset << ", row " << r;
+    }
+  }
+  for (int step : { 2, 3 })
+  {
+    arl::DtwParams params = handParams(2);
+    params.max_step = step;
+    dtw.setParams(params);
+    std::vector<int> diagonal;
+    for (int r = 0; r < 8; ++r)
+      diagonal.push_back(step * r);
+    const int end = diagonal.back();
+    for (int phase = 0; phase < end + 1 + 16; ++phase)
+    {
+      arl::CostRingBuffer buffer(8, width);
+      const std::vector<int> offsets = layBlocks(onesWithZeroPath(end + 1, diagonal), phase, width, &buffer);
+      dtw.match(buffer, 0, width, 8, false);
+      ASSERT_GT(dtw.lastChunks(), 1) << "the window was not split";
+      const std::vector<float> accumulated = dtw.lastAccumulated();
+      for (int offset : offsets)
+        ASSERT_NEAR(7 * (step - 1) * 0.05f / 8, accumulated[offset + end], 1e-6)
+            << "s " << step << ", phase " << phase << ", block at " << offset;
+      for (int offset : offsets)
+      {
+        const arl::SequenceMatch match = dtw.match(buffer, 0, width, 8, true, nullptr, offset + end, offset + end);
+        ASSERT_EQ(offset + end, match.keyframe) << "s " << step << ", phase " << phase;
+        ASSERT_EQ(diagonal.size(), match.path.size());
+        for (size_t r = 0; r < diagonal.size(); ++r)
+          ASSERT_EQ(offset + diagonal[r], match.path[r])
+              << "s " << step << ", phase " << phase << ", block at " << offset << ", row " << r;
+      }
     }
   }
 }
@@ -249,8 +269,8 @@ TEST(OnlineDtw, WideWindowsSplitIntoParallelChunksGiveTheHandRecursion)
 TEST(OnlineDtw, WideWindowsGiveTheSameInParallelChunksAsInOnePiece)
 {
   // Random costs, the default step costs and column centering: split into chunks (setParallel(true), the
-  // default) or in one piece, the accumulated row, the match, its margins and its path are the same bit
-  // for bit (every cell is computed by the same operations either way).
+  // default) or in one piece (setParallel(false)), the accumulated row, the match, its margins and its
+  // path are the same bit for bit (every cell is computed by the same operations either way).
   const int width = 9000, rows = 10;
   arl::CostRingBuffer buffer(rows, width);
   unsigned state = 12345;
@@ -269,6 +289,8 @@ TEST(OnlineDtw, WideWindowsGiveTheSameInParallelChunksAsInOnePiece)
   {
     const arl::SequenceMatch a = chunked.match(buffer, 0, width, used_rows, true);
     const arl::SequenceMatch b = whole.match(buffer, 0, width, used_rows, true);
+    EXPECT_GT(chunked.lastChunks(), 1);
+    EXPECT_EQ(1, whole.lastChunks());
     EXPECT_EQ(b.keyframe, a.keyframe);
     EXPECT_EQ(b.cost, a.cost);
     EXPECT_EQ(b.second_cost, a.second_cost);
