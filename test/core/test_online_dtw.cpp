@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -174,9 +175,8 @@ namespace
 {
 
 // Blocks of `hand` (rows x block columns) laid every block + 16 columns across an 8200-column window of
-// cost 1000, starting `phase` columns in: the offsets of the blocks. A path over 8 rows reaches at most
-// 7 x 2 = 14 columns back and cannot step over 2 columns of 1000, so no path from outside a block is
-// cheaper than the block's own.
+// cost 1000, starting `phase` columns in: the offsets of the blocks. No step (1,s), s <= 3, gets over the
+// 16 columns of 1000 between blocks, so no path from outside a block is cheaper than the block's own.
 std::vector<int> layBlocks(const std::vector<std::vector<float>>& hand, int phase, int width,
                            arl::CostRingBuffer* buffer)
 {
@@ -191,6 +191,22 @@ std::vector<int> layBlocks(const std::vector<std::vector<float>>& hand, int phas
   }
   appendRows(*buffer, matrix);
   return offsets;
+}
+
+// For each block at `offsets`: the path to its column `end`, chosen alone, is `path` (block columns).
+void expectPathsToBlockEnds(arl::OnlineDtw& dtw, const arl::CostRingBuffer& buffer, int width,
+                            const std::vector<int>& offsets, int end, const std::vector<int>& path,
+                            const std::string& context)
+{
+  for (int offset : offsets)
+  {
+    const arl::SequenceMatch match = dtw.match(buffer, 0, width, static_cast<int>(path.size()), true, nullptr,
+                                               offset + end, offset + end);
+    ASSERT_EQ(offset + end, match.keyframe) << context << ", block at " << offset;
+    ASSERT_EQ(path.size(), match.path.size()) << context;
+    for (size_t r = 0; r < path.size(); ++r)
+      ASSERT_EQ(offset + path[r], match.path[r]) << context << ", block at " << offset << ", row " << r;
+  }
 }
 
 }  // namespace
@@ -225,14 +241,9 @@ TEST(OnlineDtw, WideWindowsSplitIntoParallelChunksGiveTheHandRecursion)
           ASSERT_NEAR(expected[i], accumulated[offset + i], 1e-5)
               << "phase " << phase << ", block at " << offset << ", keyframe " << i << ", backtrack " << backtrack;
     }
-    for (int offset : offsets)
-    {
-      const arl::SequenceMatch match = dtw.match(buffer, 0, width, 8, true, nullptr, offset + 8, offset + 8);
-      ASSERT_EQ(offset + 8, match.keyframe) << "phase " << phase;
-      ASSERT_EQ(kStopAndGo.size(), match.path.size());
-      for (size_t r = 0; r < kStopAndGo.size(); ++r)
-        ASSERT_EQ(offset + kStopAndGo[r], match.path[r]) << "phase " << phase << ", block at " << offset << ", row " << r;
-    }
+    expectPathsToBlockEnds(dtw, buffer, width, offsets, 8, kStopAndGo, "phase " + std::to_string(phase));
+    if (HasFatalFailure())
+      return;
   }
   for (int step : { 2, 3 })
   {
@@ -253,15 +264,10 @@ TEST(OnlineDtw, WideWindowsSplitIntoParallelChunksGiveTheHandRecursion)
       for (int offset : offsets)
         ASSERT_NEAR(7 * (step - 1) * 0.05f / 8, accumulated[offset + end], 1e-6)
             << "s " << step << ", phase " << phase << ", block at " << offset;
-      for (int offset : offsets)
-      {
-        const arl::SequenceMatch match = dtw.match(buffer, 0, width, 8, true, nullptr, offset + end, offset + end);
-        ASSERT_EQ(offset + end, match.keyframe) << "s " << step << ", phase " << phase;
-        ASSERT_EQ(diagonal.size(), match.path.size());
-        for (size_t r = 0; r < diagonal.size(); ++r)
-          ASSERT_EQ(offset + diagonal[r], match.path[r])
-              << "s " << step << ", phase " << phase << ", block at " << offset << ", row " << r;
-      }
+      expectPathsToBlockEnds(dtw, buffer, width, offsets, end, diagonal,
+                             "s " + std::to_string(step) + ", phase " + std::to_string(phase));
+      if (HasFatalFailure())
+        return;
     }
   }
 }
