@@ -440,23 +440,29 @@ BENCHMARK(BM_StraightforwardFrame)->Apply(mapSizeArgs)->UseRealTime()->Unit(benc
 // ------------------------------------------------------------------------------------------------
 // Step 4: the DTW update alone, K = 30 rows, a band of 81 keyframes moving one keyframe per row.
 
+// `rows` rows of random normalized costs in [-2, 2), `width` keyframes each, the first row starting at
+// keyframe `first` and each next one `step` keyframes later.
+void fillRing(arl::CostRingBuffer* ring, int rows, int first, int step, int width)
+{
+  std::mt19937 rng(kSeed);
+  std::uniform_real_distribution<float> cost(-2.0f, 2.0f);
+  for (int r = 0; r < rows; ++r)
+  {
+    float* row = ring->appendRow(first + r * step, width);
+    for (int i = 0; i < width; ++i)
+      row[i] = cost(rng);
+  }
+}
+
 void BM_DtwMatch(benchmark::State& state)
 {
   const int band = static_cast<int>(state.range(0));
   const arl::LocalizerParams params = benchmarkLocalizerParams();
   const int rows = params.ring_buffer_rows;
   arl::CostRingBuffer ring(rows, 10000);
-  std::mt19937 rng(kSeed);
-  std::uniform_real_distribution<float> cost(-2.0f, 2.0f);
-  int first = 1000;
-  for (int r = 0; r < rows; ++r, ++first)
-  {
-    float* row = ring.appendRow(first, band);
-    for (int i = 0; i < band; ++i)
-      row[i] = cost(rng);
-  }
+  fillRing(&ring, rows, 1000, 1, band);
   arl::OnlineDtw dtw(params.dtw);
-  const int newest_first = first - 1;
+  const int newest_first = 1000 + rows - 1;
   for (auto _ : state)
   {
     arl::SequenceMatch match = dtw.match(ring, newest_first, band, rows, true);
@@ -475,14 +481,7 @@ void BM_DtwWholeMap(benchmark::State& state)
   const arl::LocalizerParams params = benchmarkLocalizerParams();
   const int rows = params.ring_buffer_rows;
   arl::CostRingBuffer ring(rows, n);
-  std::mt19937 rng(kSeed);
-  std::uniform_real_distribution<float> cost(-2.0f, 2.0f);
-  for (int r = 0; r < rows; ++r)
-  {
-    float* row = ring.appendRow(0, n);
-    for (int i = 0; i < n; ++i)
-      row[i] = cost(rng);
-  }
+  fillRing(&ring, rows, 0, 0, n);
   arl::OnlineDtw dtw(params.dtw);
   dtw.setParallel(state.range(1) != 0);
   for (auto _ : state)
