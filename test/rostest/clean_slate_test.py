@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Issue 33: parameters left on the parameter server by an earlier launch (a stale ~normalization: patch,
 ~ring_buffer_rows from a dynparam session) were used by the next launch, whose repeat then refused its map.
-repeat.launch and teach.launch clear their nodelets' private parameters (clear_params) and then load
+repeat.launch, teach.launch and follow.launch clear their nodelets' private parameters (clear_params) and then load
 their own; in the params_file, a misspelt one is named with the parameters the nodelet reads, a bad value is
 refused by name while the good ones are used, and what is logged is what is used."""
 
@@ -99,6 +99,25 @@ class CleanSlateTest(unittest.TestCase):
             fx.wait_for(lambda: rospy.get_param('/map_recorder/every_nth', None) == 1, 60, 'the default every_nth')
             fx.wait_for(lambda: rospy.get_param('/preprocessor/sky_fraction', None) == 0.0, 30,
                         'the default sky_fraction')
+        finally:
+            self.stop(process)
+
+    def test_follow_launch_ignores_what_an_earlier_launch_left(self):
+        # Left by an earlier follow.launch tuned in rqt (the reconfigure server writes every value back):
+        # a speed factor of 3 and a watchdog of 30 s would drive the next repeat 3x as fast and stop it
+        # only after 30 s without a localization. The params file's own route_follower: value is used.
+        rospy.set_param('/route_follower/speed_factor', 3.0)
+        rospy.set_param('/route_follower/watchdog_timeout', 30.0)
+        params = os.path.join(self.tmp, 'follow_params.yaml')
+        with open(params, 'w') as f:
+            f.write('route_follower:\n  homing_gain: 2.5\n')
+        process = self.launch('follow.launch', 'map:=', 'params_file:=' + params)
+        try:
+            fx.wait_for(lambda: rospy.get_param('/route_follower/homing_gain', None) == 2.5, 60,
+                        "homing_gain 2.5 from the params file")
+            fx.wait_for(lambda: rospy.get_param('/route_follower/speed_factor', None) == 1.0, 30,
+                        'the default speed_factor')
+            self.assertEqual(rospy.get_param('/route_follower/watchdog_timeout'), 1.0)
         finally:
             self.stop(process)
 
