@@ -8,8 +8,9 @@
 //             not read): the taught motion stored with each keyframe on the map's topic "motion" (KeyframeMotion.msg):
 //             the mean velocity of the messages since the previous keyframe (the latest when none came),
 //             the distance since the previous keyframe (twist: |linear.x| integrated over receipt times,
-//             each held at most 1 s; odometry: the path of the poses). Keyframes taken before the first
-//             motion message get none.
+//             each held at most 1 s; odometry: the path of the poses), both counted only while recording
+//             (not before ~start, not during ~pause). Keyframes taken before the first motion message get
+//             none.
 // Publishes:  /diagnostics (state, keyframes taken and written, the writer's backlog, frames not
 //             recorded and why the last one was not)
 // Services:   ~start (refused, with the reason, when the map could not be written: a `.active` left by an
@@ -82,7 +83,9 @@ private:
   void odomCb(const nav_msgs::OdometryConstPtr& msg);
   void motionTwistCb(const geometry_msgs::TwistConstPtr& msg);
   void motionOdomCb(const nav_msgs::OdometryConstPtr& msg);
-  void addMotion(double linear_mps, double angular_rps);
+  /// One velocity: the latest always, into the keyframe's sum only while `recording`.
+  void addMotion(double linear_mps, double angular_rps, bool recording);
+  bool recording();
   /// The motion since the previous keyframe (null before the first motion message); starts the next sum.
   KeyframeMotionPtr takeMotion(const std_msgs::Header& keyframe_header, bool first_keyframe);
   void configCb(MapRecorderConfig& config, uint32_t level);
@@ -132,7 +135,8 @@ private:
   double last_x_ = 0.0, last_y_ = 0.0, last_z_ = 0.0;
   uint64_t frames_seen_ = 0;  // while recording
   DroppedFrames refused_;     // frames seen while recording and not recorded
-  // The taught motion since the previous keyframe (same queue).
+  // The taught motion since the previous keyframe (same queue). Only what the robot did while recording
+  // counts: driving before ~start or during ~pause (backing into the start pose) is not taught motion.
   uint64_t motion_messages_ = 0;
   double motion_sum_linear_ = 0.0, motion_sum_angular_ = 0.0;
   int motion_count_ = 0;
@@ -321,7 +325,13 @@ void MapRecorderNodelet::odomCb(const nav_msgs::OdometryConstPtr& msg)
   have_odom_ = true;
 }
 
-void MapRecorderNodelet::addMotion(double linear_mps, double angular_rps)
+bool MapRecorderNodelet::recording()
+{
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  return state_ == State::kRecording;
+}
+
+void MapRecorderNodelet::addMotion(double linear_mps, double angular_rps, bool recording)
 {
   if (!std::isfinite(linear_mps) || !std::isfinite(angular_rps))
   {
@@ -330,9 +340,12 @@ void MapRecorderNodelet::addMotion(double linear_mps, double angular_rps)
     return;
   }
   ++motion_messages_;
-  motion_sum_linear_ += linear_mps;
-  motion_sum_angular_ += angular_rps;
-  ++motion_count_;
+  if (recording)
+  {
+    motion_sum_linear_ += linear_mps;
+    motion_sum_angular_ += angular_rps;
+    ++motion_count_;
+  }
   latest_linear_ = linear_mps;
   latest_angular_ = angular_rps;
 }
@@ -342,18 +355,20 @@ void MapRecorderNodelet::motionTwistCb(const geometry_msgs::TwistConstPtr& msg)
   // A velocity command holds until the next one; a silence longer than 1 s is taken as standing still
   // (bases stop on a cmd_vel timeout), so it adds at most 1 s of the last speed.
   const ros::Time now = ros::Time::now();
-  if (motion_messages_ > 0 && now > latest_motion_time_)
+  const bool recording_now = recording();
+  if (recording_now && motion_messages_ > 0 && now > latest_motion_time_)
     motion_distance_m_ += std::fabs(latest_linear_) * std::min(1.0, (now - latest_motion_time_).toSec());
   latest_motion_time_ = now;
-  addMotion(msg->linear.x, msg->angular.z);
+  addMotion(msg->linear.x, msg->angular.z, recording_now);
 }
 
 void MapRecorderNodelet::motionOdomCb(const nav_msgs::OdometryConstPtr& msg)
 {
   const geometry_msgs::Point& p = msg->pose.pose.position;
+  const bool recording_now = recording();
   if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))
   {
-    if (have_motion_pose_)
+    if (have_motion_pose_ && recording_now)
       motion_distance_m_ += std::sqrt((p.x - motion_x_) * (p.x - motion_x_) + (p.y - motion_y_) * (p.y - motion_y_) +
                                       (p.z - motion_z_) * (p.z - motion_z_));
     motion_x_ = p.x;
@@ -361,7 +376,7 @@ void MapRecorderNodelet::motionOdomCb(const nav_msgs::OdometryConstPtr& msg)
     motion_z_ = p.z;
     have_motion_pose_ = true;
   }
-  addMotion(msg->twist.twist.linear.x, msg->twist.twist.angular.z);
+  addMotion(msg->twist.twist.linear.x, msg->twist.twist.angular.z, recording_now);
 }
 
 KeyframeMotionPtr MapRecorderNodelet::takeMotion(const std_msgs::Header& keyframe_header, bool first_keyframe)

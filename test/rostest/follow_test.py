@@ -98,6 +98,7 @@ class FollowTest(unittest.TestCase):
         fx.set_up_route(cls, 'follow_test', FRAMES, 'along_route_follow_test_')
         cls.map_path = rospy.get_param('~map')
         cls.map_odom_path = rospy.get_param('~map_odom')
+        cls.map_manual_path = rospy.get_param('~map_manual')
         cls.diagnostics = fx.DiagnosticsCollector()
         cls.commands = fx.Collector('/follow/cmd_vel', Twist, queue_size=10000)
         cls.localizations = Repeater('/follow/localization', Localization, 10.0)
@@ -118,19 +119,39 @@ class FollowTest(unittest.TestCase):
             cls.diagnostics.next_status('%s/map_recorder: recording' % ns,
                                         lambda s: int(fx.status_values(s)['motion messages']) > 0,
                                         '%s/map_recorder to hear the motion' % ns, timeout=30)
+        # The manual teach's robot backs up at 0.5 m/s, turning the other way, before ~start; then drives
+        # as the others do.
+        reverse = Twist()
+        reverse.linear.x, reverse.angular.z = -TAUGHT_LINEAR, -TAUGHT_ANGULAR
+        cls.teach_manual_cmd_vel = Repeater('/teach_manual/cmd_vel', Twist, 20.0)
+        cls.teach_manual_cmd_vel.set(reverse)
+        fx.wait_for_service('/teach_manual/map_recorder/start')
+        heard = cls.diagnostics.next_status('teach_manual/map_recorder: recording',
+                                            lambda s: int(fx.status_values(s)['motion messages']) >= 20,
+                                            'teach_manual/map_recorder to hear the robot back up', timeout=30)
+        cls.teach_manual_cmd_vel.set(None)
+        rospy.sleep(0.2)
+        cls.start_manual = rospy.ServiceProxy('/teach_manual/map_recorder/start', Trigger)()
+        cls.teach_manual_cmd_vel.set(cmd_vel)
+        before = int(fx.status_values(heard)['motion messages'])
+        cls.diagnostics.next_status('teach_manual/map_recorder: recording',
+                                    lambda s: int(fx.status_values(s)['motion messages']) >= before + 5,
+                                    'teach_manual/map_recorder to hear the robot drive', timeout=30)
         preprocessed = fx.Collector('/teach/image_preprocessed', Image)
         fx.play(os.path.join(cls.tmp, 'teach.bag'), {fx.CAMERA_TOPIC: '/teach_camera/image_raw'})
         fx.wait_for(lambda: preprocessed.count() >= FRAMES, 60, 'the teach drive to be preprocessed')
         cls.finish = rospy.ServiceProxy('/teach/map_recorder/finish', Trigger)()
         cls.finish_odom = rospy.ServiceProxy('/teach_odom/map_recorder/finish', Trigger)()
+        cls.finish_manual = rospy.ServiceProxy('/teach_manual/map_recorder/finish', Trigger)()
         cls.teach_cmd_vel.set(None)
+        cls.teach_manual_cmd_vel.set(None)
         cls.teach_odom.running = False
 
     @classmethod
     def tearDownClass(cls):
         cls.localizations.set(None)
         shutil.rmtree(cls.tmp, ignore_errors=True)
-        fx.remove(cls.map_path, cls.map_odom_path)
+        fx.remove(cls.map_path, cls.map_odom_path, cls.map_manual_path)
 
     def call(self, service):
         return rospy.ServiceProxy(FOLLOWER + '/' + service, Trigger)()
@@ -182,6 +203,18 @@ class FollowTest(unittest.TestCase):
         self.assertTrue(all(m.distance_m / 0.25 == round(m.distance_m / 0.25) for m in motion),
                         [m.distance_m for m in motion])
         self.assertGreater(sum(m.distance_m for m in motion), 0.0)
+
+    def test_a_teach_records_only_the_motion_while_recording(self):
+        # Before the fix, keyframe 0 held the mean of the 20+ messages backing up before ~start and the few
+        # after it: a negative or small speed, which the follower would have driven at the start.
+        self.assertTrue(self.start_manual.success, self.start_manual.message)
+        self.assertTrue(self.finish_manual.success, self.finish_manual.message)
+        with rosbag.Bag(self.map_manual_path) as bag:
+            motion = [m for _, m, _ in bag.read_messages(topics=['motion'])]
+        self.assertEqual([m.keyframe for m in motion], list(range(FRAMES)))
+        for m in motion:
+            self.assertEqual((m.linear_mps, m.angular_rps), (TAUGHT_LINEAR, TAUGHT_ANGULAR))
+        self.assertEqual(motion[0].distance_m, 0.0)
 
     def test_b_follower_drives_stops_and_answers_its_services(self):
         self.assertFalse(self.start_without_map.success)
