@@ -9,6 +9,7 @@
 #define ALONG_ROUTE_LOCALIZATION_ROUTE_FOLLOWER_H
 
 #include <cstddef>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -127,8 +128,11 @@ public:
   /// A localization received at now_s. Its status END_OF_ROUTE finishes the route.
   void localization(const FollowerInput& input, double now_s);
 
-  /// The command to send at now_s (call at the control rate).
-  FollowerCommand command(double now_s);
+  /// The command to send at now_s (call at the control rate). The rate limits act over the time since
+  /// the previous call, at most max_step_s: a longer gap (the clock jumped ahead, the controller stalled)
+  /// changes the command by one step of max_step_s, never straight to the target (the nodelet passes two
+  /// control periods). Infinity: the whole gap.
+  FollowerCommand command(double now_s, double max_step_s = std::numeric_limits<double>::infinity());
 
   State state() const { return state_; }
   /// Why the target is what it is: "following", "slowing: ...", "stopped: ...".

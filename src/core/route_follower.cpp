@@ -354,12 +354,12 @@ void RouteFollower::creepOrStop(const std::string& why)
                       params_.recovery_distance_m, static_cast<double>(k));
 }
 
-FollowerCommand RouteFollower::command(double now_s)
+FollowerCommand RouteFollower::command(double now_s, double max_step_s)
 {
   computeTarget(now_s);
   if (have_command_time_ && now_s < command_s_)
     command_s_ = now_s;  // time went back: no change in this call, ramps go on from here
-  const double dt = have_command_time_ ? std::max(0.0, now_s - command_s_) : 0.0;
+  const double dt = have_command_time_ ? std::min(std::max(0.0, now_s - command_s_), max_step_s) : 0.0;
   command_.linear_mps = approach(command_.linear_mps, target_.linear_mps, params_.max_linear_accel * dt);
   command_.angular_rps = approach(command_.angular_rps, target_.angular_rps, params_.max_angular_accel * dt);
   if (creeping_)

@@ -245,7 +245,8 @@ void RouteFollowerNodelet::controlCb(const ros::TimerEvent& /*event*/)
   applyParams();
   const bool was_driving = follower_->driving();
   const std::string reason_before = follower_->reason();
-  last_command_ = follower_->command(ros::Time::now().toSec());
+  // A gap of more than two control periods (a clock that jumped ahead, a stalled manager) ramps as two.
+  last_command_ = follower_->command(ros::Time::now().toSec(), 2.0 / control_rate_hz_);
   if (follower_->reason() != reason_before && follower_->state() == RouteFollower::State::kFollowing)
   {
     if (follower_->safetyScale() < 1.0)

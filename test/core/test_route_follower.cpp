@@ -280,6 +280,35 @@ TEST(RouteFollower, TimeGoingBackStopsUntilTheNextLocalization)
   EXPECT_EQ("following", follower.reason());
 }
 
+TEST(RouteFollower, TimeJumpingAheadChangesTheCommandByOneBoundedStep)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.max_linear_accel = 1.0;
+  params.max_angular_accel = 2.0;
+  arl::RouteFollower follower = started({ motion(0.6, 0.2) }, params);
+  follower.localization(tracking(0, 0.9, 0.0), 0.0);
+  EXPECT_CLOSE(0.0, follower.command(0.0, 0.1).linear_mps);
+  // 0.05 s later: 1 m/s^2 x 0.05 s and 2 rad/s^2 x 0.05 s.
+  arl::FollowerCommand command = follower.command(0.05, 0.1);
+  EXPECT_CLOSE(0.05, command.linear_mps);
+  EXPECT_CLOSE(0.1, command.angular_rps);
+  // The clock jumps 1000 s ahead and a localization comes: one step of at most 0.1 s, not the target.
+  follower.localization(tracking(0, 0.9, 0.0), 1000.0);
+  command = follower.command(1000.0, 0.1);
+  EXPECT_CLOSE(0.15, command.linear_mps);  // 0.05 + 1 m/s^2 x 0.1 s
+  EXPECT_CLOSE(0.2, command.angular_rps);  // 0.1 + 2 rad/s^2 x 0.1 s: the target 0.2
+  // Without the bound the whole gap counts: the target at once.
+  arl::RouteFollower unbounded = started({ motion(0.6, 0.2) }, params);
+  unbounded.localization(tracking(0, 0.9, 0.0), 0.0);
+  unbounded.command(0.0);
+  unbounded.command(0.05);
+  unbounded.localization(tracking(0, 0.9, 0.0), 1000.0);
+  EXPECT_CLOSE(0.6, unbounded.command(1000.0).linear_mps);
+  // A jump ahead with no localization: the watchdog stops the robot, also by one bounded step.
+  EXPECT_CLOSE(0.2, follower.command(1000.05, 0.1).linear_mps);  // 0.15 + 1 m/s^2 x 0.05 s
+  EXPECT_CLOSE(0.1, follower.command(5000.0, 0.1).linear_mps);   // 0.2 - 1 m/s^2 x 0.1 s
+}
+
 TEST(RouteFollower, StopsWhileLostOrInitializingOrOnAKeyframeOutsideTheMap)
 {
   arl::RouteFollower follower = started({ motion(0.6, 0.1), motion(0.6, 0.1) }, immediate());
