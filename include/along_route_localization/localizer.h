@@ -342,7 +342,8 @@ public:
   Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams& params);
 
   /// Applies new parameters between frames. Buffers are resized; the current match and status are
-  /// kept when the sequence settings allow it. Throws std::invalid_argument for invalid params.
+  /// kept when the sequence settings allow it; a change of `method` starts over (reset()). Throws
+  /// std::invalid_argument for invalid params.
   void setParams(const LocalizerParams& params);
   /// Measures now, once per map and parameters, the map statistics the checks otherwise measure on the
   /// first check that needs them (the chance margins, chanceMargin: 20 x K whole-map rows, about 0.2 s for

@@ -228,6 +228,7 @@ void Localizer::setParams(const LocalizerParams& params)
               std::to_string(params.start_keyframe) + " (-1: unknown, search the whole map)";
   if (!invalid.empty())
     throw std::invalid_argument("invalid localizer parameters: " + invalid);
+  const bool method_changed = params.method != params_.method;
   const bool comparators_changed = !difference_ || params.max_shift_px != params_.max_shift_px ||
                                    params.shift_bands != params_.shift_bands ||
                                    params.max_vertical_shift_px != params_.max_vertical_shift_px ||
@@ -262,6 +263,8 @@ void Localizer::setParams(const LocalizerParams& params)
   if (comparators_changed)
     rebuildComparators();
   map_stats_.chance_margins.clear();  // chanceMargin depends on the comparison, eq. 2, the DTW and K
+  if (method_changed)
+    reset();  // the other method starts over: the baseline has no lost state to leave, nor the DTW's track
 }
 
 void Localizer::measureMapStatisticsNow()

@@ -1422,6 +1422,34 @@ TEST(Localizer, AGapOfKMinusOneFramesLosesTheTrackOneShorterDoesNot)
     }
 }
 
+TEST(Localizer, AChangeOfMethodStartsOverEvenWhileLost)
+{
+  // Lost after a gap of 40 frames (K = 30), then switched to the baseline (rqt, between frames): the
+  // baseline has no way out of lost, so before the change started over it answered lost for good. Now it
+  // initializes as at start-up and tracks from its sequence_length-th frame.
+  const auto map = syntheticMap(100);
+  arl::LocalizerParams params;
+  arl::Localizer localizer(map, params);
+  const int64_t period = 100000000LL;
+  for (int i = 0; i <= 20; ++i)
+    localizer.process(keyframeCopy(*map, i), (i + 1) * period);
+  ASSERT_EQ(LocalizationStatus::kLost, localizer.process(keyframeCopy(*map, 61), 62 * period).status);
+  params.method = arl::SequenceMethod::kSeqSlam;
+  localizer.setParams(params);
+  EXPECT_EQ(0, localizer.costs().size());
+  for (int i = 62; i <= 90; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i), (i + 1) * period);
+    const bool tracking = i - 62 + 1 >= params.min_init_frames;
+    EXPECT_EQ(tracking ? LocalizationStatus::kTracking : LocalizationStatus::kInitializing, result.status)
+        << "keyframe " << i;
+    if (i - 62 + 1 >= params.seqslam.sequence_length)
+    {
+      EXPECT_EQ(i, result.keyframe) << "keyframe " << i;
+    }
+  }
+}
+
 TEST(Localizer, AGapLongerThanTheWindowSearchesTheWholeMapAgain)
 {
   // The same route; the camera misses 40 frames (K = 30): nothing before the gap joins what comes after.
