@@ -1317,6 +1317,10 @@ bool Localizer::trackContradicted(int track_keyframe, const CostRingBuffer& ring
   int first = 0, width = n;
   if (!params_.detect_kidnapping && last_confident_ >= 0)
     reachableEnds(last_confident_, frames_since_confident_, &first, &width);
+  // The chance margins run the DTW when first measured: before this check's match, whose costs
+  // (dtw_.lastAccumulated) trackEndCost reads below.
+  if (state_ == State::kCoasting || params_.contradiction_margin_share > 0.0)
+    chanceMargin(rows);
   const SequenceMatch elsewhere = dtw_.match(ring, first, width, rows, false, map_stats_.run.data());
   contradicting_place_ = elsewhere.keyframe;
   contradiction_beats_chance_ = false;
@@ -1336,7 +1340,7 @@ bool Localizer::trackContradicted(int track_keyframe, const CostRingBuffer& ring
     const bool reachable = elsewhere.keyframe >= reach_first && elsewhere.keyframe < reach_first + reach_width;
     const float margin =
         reachable ? trackEndCost(track_keyframe, params_.dtw.exclusion_radius, first, width) - elsewhere.cost : 0.0f;
-    if (at_track || (reachable && margin > chanceMargin(rows)))  // (chanceMargin may run the DTW: after)
+    if (at_track || (reachable && margin > chanceMargin(rows)))
     {
       coast_fix_ = elsewhere.keyframe;
       return false;
@@ -1356,9 +1360,9 @@ bool Localizer::trackContradicted(int track_keyframe, const CostRingBuffer& ring
   if (!against_chance && state_ != State::kTracking)
     return true;  // coasting: the place that contradicts is published as it is (publish)
   // Better than the track's own end over the same rows by more than contradiction_margin_share of what a
-  // wrong stretch of this map beats another by, by chance (chanceMargin; it uses the DTW too, so it comes
-  // after this check's own costs were read). On a repeat beside the taught line, places that beat a right
-  // track by less were look-alikes the checks confirmed (doc/results.md, "A repeat beside the taught line").
+  // wrong stretch of this map beats another by, by chance (chanceMargin, measured above). On a repeat
+  // beside the taught line, places that beat a right track by less were look-alikes the checks confirmed
+  // (doc/results.md, "A repeat beside the taught line").
   const float margin =
       trackEndCost(track_keyframe, params_.dtw.max_step + params_.max_jump_ahead, first, width) - elsewhere.cost;
   contradiction_beats_chance_ =
