@@ -45,8 +45,8 @@ class RoutePosterior
 {
 public:
   explicit RoutePosterior(const PosteriorParams& params = PosteriorParams());
-  /// Throws std::invalid_argument when params.validate() says so. Changing max_step starts the belief over
-  /// (reset with the same map size and start).
+  /// Throws std::invalid_argument when params.validate() says so. Changing max_step keeps each position's
+  /// mass, spread evenly over the new speeds.
   void setParams(const PosteriorParams& params);
   const PosteriorParams& params() const { return params_; }
 

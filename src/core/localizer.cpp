@@ -1483,6 +1483,11 @@ void Localizer::measureChanceMargins()
   for (int rows = 2; rows <= most; ++rows)
     if (measured[rows] < kChanceWindows / 2)
       largest[rows] = largest[rows - 1];
+  // Shorter still (under about 50 keyframes with the defaults), not one stretch leaves a wrong place even
+  // for one row: chance cannot be measured on this map, and no margin is safe to beat, so none can be
+  // beaten (infinity): the checks never move the track or lose it there; the DTW alone answers.
+  if (most > 0 && measured[1] == 0)
+    std::fill(largest.begin() + 1, largest.end(), std::numeric_limits<float>::infinity());
   dtw_.setParams(tracking_dtw);
 }
 

@@ -3082,8 +3082,12 @@ TEST(Localizer, OnAShortMapEveryWindowHasAChanceMargin)
   // cover most of the map, so few or no stretches leave a wrong place to measure chance on. Such a window
   // takes the margin of the next shorter one: every window's margin is positive, as on a long map, instead
   // of 0 (with 0, any place that stands out contradicts the track, however little it beats it by).
+  // Under about 50 keyframes not one stretch leaves a wrong place even for one row (its true place and the
+  // spread, 10 + 5 + 2 = 17 keyframes either side, and the stretch of ends halfway round, 20 keyframes on,
+  // within them on a 40-keyframe map): chance cannot be measured, and every margin is infinite (no check
+  // moves the track) rather than 0 (any check does).
   arl::LocalizerParams params;
-  for (const int n : { 100, 149, 1000 })
+  for (const int n : { 40, 100, 149, 1000 })
   {
     arl::Localizer localizer(syntheticMap(n), params);
     localizer.measureMapStatisticsNow();
@@ -3093,6 +3097,7 @@ TEST(Localizer, OnAShortMapEveryWindowHasAChanceMargin)
     for (size_t rows = 1; rows < margins.size(); ++rows)
     {
       EXPECT_GT(margins[rows], 0.0f) << n << " keyframes, " << rows << " rows";
+      EXPECT_EQ(n == 40, std::isinf(margins[rows])) << n << " keyframes, " << rows << " rows";
       printed += " " + std::to_string(margins[rows]).substr(0, 5);
     }
     std::printf("%d keyframes:%s\n", n, printed.c_str());
