@@ -9,6 +9,7 @@
 #define ALONG_ROUTE_LOCALIZATION_ROUTE_FOLLOWER_H
 
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <map>
 #include <string>
@@ -70,6 +71,9 @@ struct FollowerInput
   double confidence = 0.0;
   double homing_angle_rad = 0.0;  ///< REP-103: positive = turn left to get back onto the route
   bool informative = true;        ///< false for a featureless camera frame (dark, blank, covered)
+  /// The teach-run stamp of that keyframe in the localizer's map (Localization.keyframe_stamp, ns); 0 when
+  /// unknown (not checked).
+  int64_t keyframe_stamp_ns = 0;
 };
 
 /// A velocity command (geometry_msgs/Twist linear.x, angular.z).
@@ -115,6 +119,10 @@ public:
 
   /// Throws std::invalid_argument when invalid (the old ones stay).
   void setParams(const RouteFollowerParams& params);
+  /// The teach-run stamp of each keyframe of the follower's map (one per keyframe of the motion; throws
+  /// std::invalid_argument otherwise). A localization whose keyframe_stamp_ns is known and differs from its
+  /// keyframe's here comes from another map: the robot stops (its index would drive this map's motion).
+  void setKeyframeStamps(std::vector<int64_t> stamps_ns);
   const RouteFollowerParams& params() const { return params_; }
 
   /// Services. Each returns whether it changed the state and says what happened in `message`.
@@ -160,6 +168,7 @@ private:
   void setTarget(const TaughtMotion& taught, double homing_rps);
 
   std::vector<TaughtMotion> motion_;
+  std::vector<int64_t> stamps_ns_;  // of the keyframes, when given (setKeyframeStamps)
   bool has_distances_ = false;  // some keyframe records a distance travelled (the creep can reckon on)
   RouteFollowerParams params_;
   State state_ = State::kIdle;

@@ -114,6 +114,14 @@ void RouteFollower::setParams(const RouteFollowerParams& params)
   params_ = params;
 }
 
+void RouteFollower::setKeyframeStamps(std::vector<int64_t> stamps_ns)
+{
+  if (stamps_ns.size() != motion_.size())
+    throw std::invalid_argument("keyframe stamps: " + std::to_string(stamps_ns.size()) + " for " +
+                                std::to_string(motion_.size()) + " keyframes of taught motion");
+  stamps_ns_ = std::move(stamps_ns);
+}
+
 bool RouteFollower::driving() const
 {
   return state_ == State::kFollowing || command_.linear_mps != 0.0 || command_.angular_rps != 0.0;
@@ -266,6 +274,15 @@ void RouteFollower::computeTarget(double now_s)
   {
     reason_ = "stopped: keyframe " + std::to_string(last_input_.keyframe) + " is not among the map's " +
               std::to_string(motion_.size()) + " keyframes (localizing against another map?)";
+    return;
+  }
+  const size_t k = static_cast<size_t>(last_input_.keyframe);
+  if (!stamps_ns_.empty() && last_input_.keyframe_stamp_ns != 0 && last_input_.keyframe_stamp_ns != stamps_ns_[k])
+  {
+    reason_ = formatted("stopped: keyframe %.0f was taught at %.3f s in the localizer's map, at %.3f s in the "
+                        "follower's: they are different maps (load the same map in both)",
+                        static_cast<double>(k), 1e-9 * static_cast<double>(last_input_.keyframe_stamp_ns),
+                        1e-9 * static_cast<double>(stamps_ns_[k]));
     return;
   }
   if (!confident_since_start_)

@@ -159,7 +159,12 @@ void RouteFollowerNodelet::loadMap(const std::string& path)
       params = requested_params_;
       params_changed_ = false;
     }
-    follower_.reset(new RouteFollower(std::move(motion), params));
+    std::vector<int64_t> stamps_ns(map.size());
+    for (size_t k = 0; k < map.size(); ++k)
+      stamps_ns[k] = map.stampNs(k);
+    std::unique_ptr<RouteFollower> follower(new RouteFollower(std::move(motion), params));
+    follower->setKeyframeStamps(std::move(stamps_ns));
+    follower_ = std::move(follower);
     NODELET_INFO("Map %s: %zu keyframes with taught motion", path.c_str(), follower_->keyframes());
   }
   catch (const std::exception& e)
@@ -232,6 +237,7 @@ void RouteFollowerNodelet::localizationCb(const LocalizationConstPtr& msg)
   input.confidence = msg->confidence;
   input.homing_angle_rad = msg->homing_angle;
   input.informative = msg->query_informative;
+  input.keyframe_stamp_ns = static_cast<int64_t>(msg->keyframe_stamp.toNSec());
   const RouteFollower::State before = follower_->state();
   follower_->localization(input, ros::Time::now().toSec());
   if (before != follower_->state() && follower_->state() == RouteFollower::State::kFinished)

@@ -326,6 +326,29 @@ TEST(RouteFollower, StopsWhileLostOrInitializingOrOnAKeyframeOutsideTheMap)
   EXPECT_CLOSE(0.6, follower.command(0.7).linear_mps);
 }
 
+TEST(RouteFollower, StopsOnALocalizationFromAnotherMap)
+{
+  // The follower's map was taught at 10 s and 10.5 s. A localization of keyframe 1 whose stamp is the
+  // follower's drives; one whose stamp differs comes from another map the localizer loaded (its index
+  // would drive this map's motion): stop, saying so. A stamp of 0 (unknown) is not checked.
+  arl::RouteFollower follower = started({ motion(0.6, 0.1), motion(0.4, 0.0) }, immediate());
+  EXPECT_THROW(follower.setKeyframeStamps({ 10000000000LL }), std::invalid_argument);
+  follower.setKeyframeStamps({ 10000000000LL, 10500000000LL });
+  arl::FollowerInput input = tracking(1, 0.9, 0.0);
+  input.keyframe_stamp_ns = 10500000000LL;
+  follower.localization(input, 0.0);
+  EXPECT_CLOSE(0.4, follower.command(0.1).linear_mps);
+  input.keyframe_stamp_ns = 20500000000LL;
+  follower.localization(input, 0.2);
+  EXPECT_CLOSE(0.0, follower.command(0.3).linear_mps);
+  EXPECT_NE(std::string::npos, follower.reason().find("at 20.500 s in the localizer's map, at 10.500 s in the "
+                                                      "follower's: they are different maps"))
+      << follower.reason();
+  input.keyframe_stamp_ns = 0;
+  follower.localization(input, 0.4);
+  EXPECT_CLOSE(0.4, follower.command(0.5).linear_mps);
+}
+
 TEST(RouteFollower, AfterALossOrALowConfidenceStopItCreepsABoundedDistanceAlongTheTaughtMotionThenStops)
 {
   // creepRoute, creepParams: 0.0625 m a command every 0.125 s, at most 1 m.

@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Follow: teach.launch records the taught motion from cmd_vel into the map; follow.launch's route_follower
 drives from Localization messages (published here) with it: the command worked out by hand, the watchdog,
-stop on lost, slow then stop on low confidence, stop at the end of the route, the services,
+stop on lost, slow then stop on low confidence, stop on a localization from another map, stop at the end
+of the route, the services,
 dynamic_reconfigure, and a map without taught motion refused with a clear error."""
 
 import os
@@ -288,6 +289,20 @@ class FollowTest(unittest.TestCase):
         self.assertFalse(self.call('stop').success)
         self.assertTrue(self.call('start').success)
         self.drive('started again')
+
+        # A localization from another map (the localizer loaded one whose keyframe 10 was taught at another
+        # time): its index would drive this map's motion; stop, saying so. With this map's stamp: drive.
+        with rosbag.Bag(self.map_path) as bag:
+            stamps = [m.header.stamp for _, m, _ in bag.read_messages(topics=['keyframes'])]
+        other = localization()
+        other.keyframe_stamp = stamps[10] + rospy.Duration(100.0)
+        self.localizations.set(other)
+        self.wait_for_command(0.0, 0.0, 'another map')
+        self.status(lambda s: 'they are different maps' in s.message, 'another map in the diagnostics')
+        same = localization()
+        same.keyframe_stamp = stamps[10]
+        self.localizations.set(same)
+        self.wait_for_command(TAUGHT_LINEAR, TAUGHT_ANGULAR + 0.1, 'this map again')
 
         # End of the route: stop, and stay stopped while localizations on the route keep coming.
         self.localizations.set(localization(status=Localization.STATUS_END_OF_ROUTE, keyframe=FRAMES - 1))
