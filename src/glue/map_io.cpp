@@ -1,7 +1,9 @@
 #include "glue/map_io.h"
 
 #include <fcntl.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -796,13 +798,40 @@ void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe, const KeyframeMo
   pending_motion_.push_back(motion);
 }
 
+std::string MapWriter::roomProblem(uint64_t size, uint64_t added) const
+{
+  // A write that fails part way leaves rosbag's file unindexed, and rosbag::Bag's destructor then throws
+  // from close(), which ends the process: so the room is checked before a file is touched.
+  struct rlimit limit;
+  if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY && size + added > limit.rlim_cur)
+    return "the file would pass the process's file size limit (" + std::to_string(limit.rlim_cur) +
+           " bytes, ulimit -f)";
+  const std::string folder = path_.substr(0, path_.find_last_of('/') + 1);
+  struct statvfs disk;
+  if (::statvfs(folder.empty() ? "." : folder.c_str(), &disk) == 0 &&
+      static_cast<uint64_t>(disk.f_bavail) * disk.f_frsize < added)
+    return std::to_string(static_cast<uint64_t>(disk.f_bavail) * disk.f_frsize / 1024) + " KiB free on its disk, " +
+           std::to_string(added / 1024) + " KiB needed";
+  return std::string();
+}
+
 void MapWriter::flush()
 {
   if (pending_.empty())
     return;
   const std::string active = activePath();
   const bool first = written_ == 0;
+  // Room for each keyframe's bytes and records, and for every connection record the index will hold (one
+  // per topic per flush, each with its message definition): generous.
+  uint64_t needed = 64 * 1024 + static_cast<uint64_t>(flushes_ + 2) * 3 * 8 * 1024;
+  for (const sensor_msgs::ImageConstPtr& keyframe : pending_)
+    needed += keyframe->data.size() + 1024;
   struct stat info;
+  const uint64_t size = (!first && ::stat(path_.c_str(), &info) == 0) ? static_cast<uint64_t>(info.st_size) : 0;
+  const std::string no_room = roomProblem(size, needed);
+  if (!no_room.empty())
+    throw MapError("no room to write " + std::to_string(pending_.size()) + " keyframes to " + inQuotes(path_) + ": " +
+                   no_room + "; the map as flushed is kept and the keyframes stay buffered");
   if (first && fileExists(path_, &info))
   {
     // A map from before under the same name: keep it under another name rather than overwrite it.
@@ -867,6 +896,16 @@ void MapWriter::flush()
 void MapWriter::writeOneConnectionPerTopic()
 {
   const std::string active = activePath();
+  struct stat info;
+  const uint64_t size = ::stat(path_.c_str(), &info) == 0 ? static_cast<uint64_t>(info.st_size) : 0;
+  const std::string no_room = roomProblem(0, size + 64 * 1024);
+  if (!no_room.empty())
+  {
+    ROS_WARN_STREAM("Map " << inQuotes(path_) << " is complete, but there is no room to write it again with one "
+                                                 "connection per topic ("
+                           << no_room << "); it keeps one per flush, which reads the same");
+    return;
+  }
   try
   {
     rosbag::Bag in(path_, rosbag::bagmode::Read);

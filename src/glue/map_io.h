@@ -127,7 +127,8 @@ public:
   void add(const sensor_msgs::ImageConstPtr& keyframe, const KeyframeMotionConstPtr& motion = KeyframeMotionConstPtr());
 
   /// Writes the buffered keyframes; afterwards `<path>` is a complete map. No-op when nothing is
-  /// buffered. Throws MapError (the keyframes stay buffered, so a later flush may retry).
+  /// buffered. Throws MapError (the keyframes stay buffered, so a later flush may retry), also, before the
+  /// file is touched, when the disk or the file size limit leaves no room for them.
   void flush();
 
   /// flush() and stop accepting keyframes; a map written by more than one flush is then written again
@@ -148,6 +149,9 @@ public:
 private:
   /// Writes the map at path() again with one connection per topic (see the class comment).
   void writeOneConnectionPerTopic();
+  /// Why `added` bytes cannot be written to a file of `size` bytes next to path() (the file size limit, the
+  /// disk's free space), or "" when they can.
+  std::string roomProblem(uint64_t size, uint64_t added) const;
 
   std::string path_;
   PreprocessingParams params_;

@@ -706,6 +706,7 @@ void MapRecorderNodelet::writerLoop()
     lock.unlock();
 
     std::string error;
+    bool wrote = false;  // a flush went through: an earlier failure (a full disk) is over
     const auto now = std::chrono::steady_clock::now();
     try
     {
@@ -719,6 +720,7 @@ void MapRecorderNodelet::writerLoop()
           writer->close();
         else
           writer->flush();
+        wrote = true;
       }
     }
     catch (const MapError& e)
@@ -741,6 +743,12 @@ void MapRecorderNodelet::writerLoop()
     }
     if (!error.empty())
       writer_error_ = error;
+    else if (wrote && !writer_error_.empty())
+    {
+      NODELET_INFO("Map %s: written again (%zu keyframes); recording goes on", map_path_.c_str(), keyframes_written_);
+      writer_error_.clear();
+      last_logged_error.clear();
+    }
     if (finish && !finish_done_)
     {
       if (!writer_error_.empty())

@@ -17,6 +17,9 @@
 #include <string>
 #include <vector>
 
+#include <csignal>
+#include <sys/resource.h>
+
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/image_encodings.h>
@@ -162,6 +165,54 @@ TEST_F(MapIoTest, EachFlushLeavesACompleteMapUnderTheFinalName)
   EXPECT_EQ(readMap(file).size(), 6u);
   EXPECT_FALSE(exists(file + ".active"));
   EXPECT_THROW(writer.add(keyframeMessage(randomKeyframe(rng), 30)), MapError);
+}
+
+// A flush without room (here the process's file size limit; a full disk is checked the same way) must not
+// lose the map flushed before: the final name keeps it, the keyframes stay buffered, and a flush once there
+// is room again writes them all. Before, rosbag failed part way through the append, its Bag's destructor
+// threw from close() and the process ended (std::terminate: the recorder's whole nodelet manager).
+TEST_F(MapIoTest, AFlushWithoutRoomKeepsTheMapAndALaterFlushWritesEverything)
+{
+  const std::string file = path("map.bag");
+  cv::RNG rng(3);
+  MapWriter writer(file, PreprocessingParams());
+  for (int k = 0; k < 4; ++k)
+    writer.add(keyframeMessage(randomKeyframe(rng), 10 + k));
+  writer.flush();
+  ASSERT_EQ(readMap(file).size(), 4u);
+  const off_t flushed = fileSize(file);
+
+  struct rlimit old_limit;
+  ASSERT_EQ(0, getrlimit(RLIMIT_FSIZE, &old_limit));
+  const sighandler_t old_handler = std::signal(SIGXFSZ, SIG_IGN);  // EFBIG instead of a signal
+  struct rlimit limit = old_limit;
+  limit.rlim_cur = static_cast<rlim_t>(flushed + 3000);  // room for about one more keyframe, not forty
+  ASSERT_EQ(0, setrlimit(RLIMIT_FSIZE, &limit));
+  for (int k = 0; k < 40; ++k)
+    writer.add(keyframeMessage(randomKeyframe(rng), 20 + k));
+  std::string error;
+  try
+  {
+    writer.flush();
+  }
+  catch (const MapError& e)
+  {
+    error = e.what();
+  }
+  ASSERT_EQ(0, setrlimit(RLIMIT_FSIZE, &old_limit));
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_NE("", error) << "a flush that could not write did not say so";
+  std::printf("the failed flush said: %s\n", error.c_str());
+  EXPECT_TRUE(exists(file)) << "the final name lost the map flushed before";
+  EXPECT_EQ("", readError(file));
+  EXPECT_EQ(4u, writer.written());
+  EXPECT_EQ(44u, writer.added());
+
+  writer.flush();  // room again
+  EXPECT_EQ(44u, readMap(file).size());
+  writer.close();
+  EXPECT_EQ(44u, readMap(file).size());
+  EXPECT_FALSE(exists(file + ".active"));
 }
 
 // Issue 33: each flush appended new connections (60 for 599 keyframes; a file 2.5x larger with a short
