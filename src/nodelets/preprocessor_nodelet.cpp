@@ -66,7 +66,7 @@ private:
   PreprocessorConfig last_valid_config_;
   PreprocessingParams requested_params_;
 
-  // Used only from the nodelet's single-threaded callback queue (imageCb) after onInit.
+  // Used only from the nodelet's single-threaded callback queue (imageCb, configCb) after onInit.
   Preprocessor preprocessor_;
   // The diagnostics timer runs on the same queue, so these need no lock either.
   bool in_place_warned_ = false;
@@ -193,8 +193,19 @@ void PreprocessorNodelet::configCb(PreprocessorConfig& config, uint32_t /*level*
     invalid = params.validate();
   const ConfigReview review = reviewConfig(config, last_valid_config_, std::move(corrections), invalid);
   logConfigReview(review, getName(), "preprocessing parameters");
-  if (review.rejected.empty())
-    requested_params_ = params;
+  if (!review.rejected.empty())
+    return;
+  requested_params_ = params;
+  // Applied and announced now, not at the next image: downstream nodelets check maps against the
+  // announcement, and while no image comes (a localizer without a map does not subscribe, so none is
+  // asked for) a map made with the new parameters was refused. The reconfigure service runs on the same
+  // single-threaded queue as imageCb, so the announcement still comes before the first image made with them.
+  if (params_pub_ && params != preprocessor_.params())
+  {
+    preprocessor_.setParams(params);
+    announce(params);
+    NODELET_INFO("Preprocessing parameters now %s", params.serialize().c_str());
+  }
 }
 
 void PreprocessorNodelet::announce(const PreprocessingParams& params)

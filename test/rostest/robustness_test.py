@@ -4,11 +4,13 @@ and the good frames around it still go through; a burst keeps its newest frame; 
 and loaded again in its running manager localizes again."""
 
 import os
+import re
 import shutil
 import time
 import unittest
 
 import numpy as np
+import rosbag
 import rospy
 import rostest
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -385,6 +387,37 @@ class RobustnessTest(unittest.TestCase):
         again = self.good(12)
         self.camera.publish(again)
         self.wait_for_stamp(self.localizations, again.header.stamp, 'localizations once the parameters match again')
+
+    def test_new_preprocessing_is_announced_before_any_image(self):
+        # The preprocessor announced new parameters only with the next image, and a localizer without a map
+        # subscribes to no image, so none came: a map made with the new parameters was refused, quoting the
+        # old ones, until a relaunch. Here no frame is published while the parameters change.
+        sky_map = os.path.join(self.tmp, 'sky_map.bag')
+        with rosbag.Bag(self.map_path) as source, rosbag.Bag(sky_map, 'w') as target:
+            for topic, msg, t in source.read_messages():
+                if topic == 'preprocessing':
+                    msg.data = re.sub(r'sky_fraction=[^;]*', 'sky_fraction=0.25', msg.data)
+                target.write(topic, msg, t)
+        name = '/repeat/mapless_localizer'
+        rospy.set_param(name + '/map', '')
+        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
+            name, 'along_route_localization/localizer', [], [], [], '')
+        self.assertTrue(loaded.success)
+        preprocessor = ReconfigureClient('/repeat/preprocessor', timeout=30)
+        try:
+            fx.wait_for_service(name + '/load_map')
+            load_map = rospy.ServiceProxy(name + '/load_map', LoadMap)
+            refused = load_map(sky_map)
+            self.assertFalse(refused.success)
+            self.assertIn('sky_fraction', refused.message)
+            preprocessor.update_configuration({'sky_fraction': 0.25})
+            fx.wait_for(lambda: load_map(sky_map).success, 10, 'the map made with sky_fraction 0.25 to load')
+        finally:
+            preprocessor.update_configuration({'sky_fraction': 0.0})
+            rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
+        again = self.good(13)
+        self.camera.publish(again)
+        self.wait_for_stamp(self.localizations, again.header.stamp, 'localizations with sky_fraction 0 again')
 
     def test_localizer_unloaded_and_loaded_again(self):
         unloaded = rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)('/repeat/localizer')
