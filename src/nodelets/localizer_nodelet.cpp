@@ -337,13 +337,8 @@ void LocalizerNodelet::onInit()
     input_buffer_pub_ = private_nh.advertise<std_msgs::String>("input_buffer", 100);
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
   debug_pub_ = it_->advertise("localization_debug_image", 1);
-  const std::string params_topic = preprocessingParamsTopic(image_topic_);
-  params_sub_ = nh.subscribe(params_topic, 1, &LocalizerNodelet::paramsCb, this);
-  if (map_)
-    subscribeImages();
-  // After the subscription: a map loaded through it subscribes from the service's callback (loadMap).
-  load_map_srv_ = private_nh.advertiseService("load_map", &LocalizerNodelet::loadMapCb, this);
-  // The same single-threaded queue as the images: the detector needs no lock.
+  // The same single-threaded queue as the images: the detector needs no lock. Before the images are
+  // subscribed: imageCb reads motion_sub_, and callbacks may run while onInit goes on.
   std::string problem;
   const MotionType motion_type = readMotionType(private_nh, MotionType::kNone, &problem);
   if (!problem.empty())
@@ -355,6 +350,12 @@ void LocalizerNodelet::onInit()
   if (motion_sub_)
     NODELET_INFO("Whether the robot stood still between frames: from %s (%s)", motion_sub_.getTopic().c_str(),
                  motionTypeName(motion_type).c_str());
+  const std::string params_topic = preprocessingParamsTopic(image_topic_);
+  params_sub_ = nh.subscribe(params_topic, 1, &LocalizerNodelet::paramsCb, this);
+  if (map_)
+    subscribeImages();
+  // After the subscription: a map loaded through it subscribes from the service's callback (loadMap).
+  load_map_srv_ = private_nh.advertiseService("load_map", &LocalizerNodelet::loadMapCb, this);
   NODELET_INFO("Localizing %s against %s; preprocessing parameters checked against %s",
                image_topic_.c_str(), map_ ? map_path_.c_str() : "(no map yet)",
                params_topic.c_str());

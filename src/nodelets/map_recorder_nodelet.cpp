@@ -216,11 +216,13 @@ void MapRecorderNodelet::onInit()
   updater_ = std::make_shared<diagnostic_updater::Updater>(nh, private_nh, getName());
   updater_->setHardwareID("none");
   updater_->add("recording", this, &MapRecorderNodelet::diagnose);
-  diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
+  // The diagnostics timer starts last: diagnose reads the subscribers, and callbacks may run while onInit
+  // goes on.
 
   if (map_path_.empty())
   {
     NODELET_ERROR("No ~map parameter: set it to the path of the map file to record; nothing will be recorded");
+    diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
     return;
   }
   try
@@ -263,6 +265,7 @@ void MapRecorderNodelet::onInit()
   const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh);
   image_sub_ = it_->subscribe("image_preprocessed", static_cast<uint32_t>(std::max(1, queue_size)),
                               &MapRecorderNodelet::imageCb, this, hints);
+  diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
   NODELET_INFO("Recording %s into map %s (%s); preprocessing parameters from %s",
                nh.resolveName("image_preprocessed").c_str(), map_path_.c_str(),
                autostart ? "started" : "call ~start to begin", params_topic.c_str());
@@ -723,7 +726,7 @@ void MapRecorderNodelet::writerLoop()
         wrote = true;
       }
     }
-    catch (const MapError& e)
+    catch (const std::exception& e)  // MapError, and anything else rosbag throws: never out of the thread
     {
       error = e.what();
       if (error != last_logged_error)  // a failing flush fails again every flush_period: said once
