@@ -1158,7 +1158,11 @@ LocalizationResult Localizer::publish(const Frame& frame, int keyframe, double c
     result.confidence = 0.0;  // contradicted, or unconfirmed: no chance worth a number
     if (lost_position_ >= 0.0 && params_.dead_reckon_while_lost)
     {
-      lost_position_ = reckonedAhead(lost_position_);
+      // The frame that lost the track answers where the track had it (loseTrack: this frame's place); the
+      // frames after it, and the one after a gap that lost it (skipFrames: its last missed frame's), one
+      // frame of the cruise speed on.
+      if (lost_frame_ != static_cast<int64_t>(frames_))
+        lost_position_ = reckonedAhead(lost_position_);
       result.keyframe = static_cast<int>(std::lround(lost_position_));
     }
     else if (frame.contradicted && state_ == State::kTracking && last_confident_ >= 0 &&

@@ -1767,6 +1767,55 @@ TEST(Localizer, ContraryEvidenceMovesTheTrackAndLostAnswersAreDeadReckoned)
   EXPECT_EQ(170, localizer.process(keyframeCopy(*map, 170)).keyframe);
 }
 
+TEST(Localizer, TheFrameThatLosesTheTrackAnswersWhereTheTrackHadTheRobot)
+{
+  // Keyframes 0..40 at one a frame, then frames that match nothing; loss_needs_contradiction false: low
+  // confidence alone loses the track. `lost` (lost after 8 low frames of 20) and `later` (after 20) compare
+  // the same rows and answer alike until the first loses the track: on that frame it answers where its
+  // track had the robot, the twin's answer there, not one frame of cruise speed ahead (it was 1 keyframe
+  // ahead); then each frame one step of dead reckoning on.
+  const auto map = syntheticMap(200);
+  arl::LocalizerParams params;
+  params.loss_needs_contradiction = false;
+  params.dead_reckon_while_lost = true;
+  params.lost_window_frames = 20;
+  params.lost_after_frames = 8;
+  arl::Localizer lost(map, params);
+  params.lost_after_frames = 20;
+  arl::Localizer later(map, params);
+  for (int i = 0; i <= 40; ++i)
+  {
+    ASSERT_EQ(i, lost.process(keyframeCopy(*map, i)).keyframe);
+    ASSERT_EQ(i, later.process(keyframeCopy(*map, i)).keyframe);
+  }
+  int first_lost = -1, previous = -1;
+  for (int j = 1; j <= 30 && first_lost < 0; ++j)
+  {
+    const cv::Mat frame = randomFrame(91000 + j);
+    const arl::LocalizationResult a = lost.process(frame);
+    const arl::LocalizationResult b = later.process(frame);
+    ASSERT_EQ(LocalizationStatus::kTracking, b.status) << "frame " << j;
+    if (a.status == LocalizationStatus::kLost)
+    {
+      first_lost = j;
+      EXPECT_EQ(b.keyframe, a.keyframe) << "the frame that lost the track, " << j;
+      previous = a.keyframe;
+    }
+    else
+    {
+      ASSERT_EQ(b.keyframe, a.keyframe) << "frame " << j;
+    }
+  }
+  ASSERT_GT(first_lost, 0) << "never lost";
+  const double cruise = lost.cruiseSpeed();
+  double position = previous;
+  for (int j = first_lost + 1; j <= first_lost + 5; ++j)
+  {
+    position = std::min(199.0, position + std::min(2.0, std::max(0.0, cruise)));
+    EXPECT_EQ(static_cast<int>(std::lround(position)), lost.process(randomFrame(91000 + j)).keyframe) << "frame " << j;
+  }
+}
+
 TEST(CalibratedConfidence, IsTheLogisticOfTheMarginConfidence)
 {
   // sigma(-1 + 4 * 0.5) = 1 / (1 + e^-1) = 0.7310585786; sigma(-1 + 4 * 0) = 0.2689414214; slope 0: c itself.
