@@ -973,7 +973,7 @@ void Localizer::recentCheck(Frame* frame, SequenceMatch* match)
   if (rows <= 0 || !params_.detect_kidnapping || params_.method != SequenceMethod::kOnlineDtw || frame->global ||
       frame->checking_start || ring_.size() < rows || recent_count_ < rows)
   {
-    check.under_way = false;  // off, or the start's own check is on, or too few rows to weigh
+    check.end();  // off, or the start's own check is on, or too few rows to weigh: the next one starts afresh
     return;
   }
   if (!frame->informative || frame->repeated)
