@@ -9,8 +9,8 @@
 //             the mean velocity of the messages since the previous keyframe (the latest when none came),
 //             the distance since the previous keyframe (twist: |linear.x| integrated over receipt times,
 //             each held at most 1 s; odometry: the path of the poses), both counted only while recording
-//             (not before ~start, not during ~pause). Keyframes taken before the first motion message get
-//             none.
+//             (not before ~start, not during ~pause). Keyframes taken before the first motion message
+//             heard while recording get none.
 // Publishes:  /diagnostics (state, keyframes taken and written, the writer's backlog, frames not
 //             recorded and why the last one was not)
 // Services:   ~start (refused, with the reason, when the map could not be written: a `.active` left by an
@@ -116,6 +116,7 @@ private:
   std::shared_ptr<image_transport::ImageTransport> it_;
   image_transport::Subscriber image_sub_;
   ros::Subscriber params_sub_, odom_sub_, motion_sub_;
+  std::string motion_topic_;
   ros::ServiceServer start_srv_, pause_srv_, finish_srv_;
   std::shared_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostics_timer_;
@@ -141,6 +142,7 @@ private:
   double motion_sum_linear_ = 0.0, motion_sum_angular_ = 0.0;
   int motion_count_ = 0;
   double latest_linear_ = 0.0, latest_angular_ = 0.0;
+  bool latest_while_recording_ = false;  // the latest motion message came while recording
   ros::Time latest_motion_time_;
   double motion_distance_m_ = 0.0;
   bool have_motion_pose_ = false;
@@ -257,6 +259,7 @@ void MapRecorderNodelet::onInit()
   const MotionType motion_type = readMotionType(private_nh, MotionType::kTwist, &problem);
   if (!problem.empty())
     NODELET_ERROR("%s", problem.c_str());
+  motion_topic_ = nh.resolveName("motion");  // before the subscription: its callback names it
   if (motion_type == MotionType::kTwist)
     motion_sub_ = nh.subscribe("motion", 100, &MapRecorderNodelet::motionTwistCb, this);
   else if (motion_type == MotionType::kOdometry)
@@ -338,8 +341,7 @@ void MapRecorderNodelet::addMotion(double linear_mps, double angular_rps, bool r
 {
   if (!std::isfinite(linear_mps) || !std::isfinite(angular_rps))
   {
-    NODELET_WARN_THROTTLE(5.0, "Ignoring a motion message on %s with a non-finite velocity",
-                          motion_sub_.getTopic().c_str());
+    NODELET_WARN_THROTTLE(5.0, "Ignoring a motion message on %s with a non-finite velocity", motion_topic_.c_str());
     return;
   }
   ++motion_messages_;
@@ -351,6 +353,7 @@ void MapRecorderNodelet::addMotion(double linear_mps, double angular_rps, bool r
   }
   latest_linear_ = linear_mps;
   latest_angular_ = angular_rps;
+  latest_while_recording_ = recording;
 }
 
 void MapRecorderNodelet::motionTwistCb(const geometry_msgs::TwistConstPtr& msg)
@@ -359,7 +362,7 @@ void MapRecorderNodelet::motionTwistCb(const geometry_msgs::TwistConstPtr& msg)
   // (bases stop on a cmd_vel timeout), so it adds at most 1 s of the last speed.
   const ros::Time now = ros::Time::now();
   const bool recording_now = recording();
-  if (recording_now && motion_messages_ > 0 && now > latest_motion_time_)
+  if (recording_now && latest_while_recording_ && now > latest_motion_time_)
     motion_distance_m_ += std::fabs(latest_linear_) * std::min(1.0, (now - latest_motion_time_).toSec());
   latest_motion_time_ = now;
   addMotion(msg->linear.x, msg->angular.z, recording_now);
@@ -371,7 +374,7 @@ void MapRecorderNodelet::motionOdomCb(const nav_msgs::OdometryConstPtr& msg)
   const bool recording_now = recording();
   if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))
   {
-    if (have_motion_pose_ && recording_now)
+    if (have_motion_pose_ && recording_now && latest_while_recording_)
       motion_distance_m_ += std::sqrt((p.x - motion_x_) * (p.x - motion_x_) + (p.y - motion_y_) * (p.y - motion_y_) +
                                       (p.z - motion_z_) * (p.z - motion_z_));
     motion_x_ = p.x;
@@ -384,7 +387,10 @@ void MapRecorderNodelet::motionOdomCb(const nav_msgs::OdometryConstPtr& msg)
 
 KeyframeMotionPtr MapRecorderNodelet::takeMotion(const std_msgs::Header& keyframe_header, bool first_keyframe)
 {
-  if (motion_messages_ == 0)
+  // Nothing heard while recording since the keyframe before (right after ~start or a resume, before the
+  // first message): no record, rather than a velocity from before (the follower gives the keyframe the
+  // nearest recorded one).
+  if (motion_count_ == 0 && !latest_while_recording_)
     return KeyframeMotionPtr();
   KeyframeMotionPtr motion = boost::make_shared<KeyframeMotion>();
   motion->header = keyframe_header;
