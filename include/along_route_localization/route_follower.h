@@ -121,7 +121,8 @@ public:
   void setParams(const RouteFollowerParams& params);
   /// The teach-run stamp of each keyframe of the follower's map (one per keyframe of the motion; throws
   /// std::invalid_argument otherwise). A localization whose keyframe_stamp_ns is known and differs from its
-  /// keyframe's here comes from another map: the robot stops (its index would drive this map's motion).
+  /// keyframe's here comes from another map: the robot stops (its index would drive this map's motion), and
+  /// stays stopped, lost localizations included, until one from this map comes.
   void setKeyframeStamps(std::vector<int64_t> stamps_ns);
   const RouteFollowerParams& params() const { return params_; }
 
@@ -139,7 +140,7 @@ public:
   /// The command to send at now_s (call at the control rate). The rate limits act over the time since
   /// the previous call, at most max_step_s: a longer gap (the clock jumped ahead, the controller stalled)
   /// changes the command by one step of max_step_s, never straight to the target (the nodelet passes two
-  /// control periods). Infinity: the whole gap.
+  /// control periods). Infinity: the whole gap. A creep counts the whole gap as driven.
   FollowerCommand command(double now_s, double max_step_s = std::numeric_limits<double>::infinity());
 
   State state() const { return state_; }
@@ -169,6 +170,8 @@ private:
 
   std::vector<TaughtMotion> motion_;
   std::vector<int64_t> stamps_ns_;  // of the keyframes, when given (setKeyframeStamps)
+  int64_t foreign_stamp_ns_ = 0;     // the last on-route localization came from another map: its stamp (else 0)
+  int foreign_keyframe_ = -1;        // and its keyframe
   bool has_distances_ = false;  // some keyframe records a distance travelled (the creep can reckon on)
   RouteFollowerParams params_;
   State state_ = State::kIdle;

@@ -179,6 +179,23 @@ void RouteFollower::localization(const FollowerInput& input, double now_s)
 {
   const bool on_route =
       input.status == LocalizationStatus::kTracking || input.status == LocalizationStatus::kEndOfRoute;
+  // A localization on the route of another map (its keyframe's teach stamp known and not this map's
+  // keyframe's) says nothing about where the robot is on this one: until one from this map comes, lost
+  // ones included, the robot stops (computeTarget), creeps on nothing, and no end of route finishes it.
+  const bool in_map = input.keyframe >= 0 && input.keyframe < static_cast<int>(motion_.size());
+  if (on_route && in_map && input.keyframe_stamp_ns != 0 && !stamps_ns_.empty())
+    foreign_stamp_ns_ = input.keyframe_stamp_ns != stamps_ns_[static_cast<size_t>(input.keyframe)] ?
+                            input.keyframe_stamp_ns :
+                            0;
+  if (foreign_stamp_ns_ != 0)
+  {
+    if (on_route)
+      foreign_keyframe_ = input.keyframe;
+    last_input_ = input;
+    last_input_s_ = now_s;
+    have_input_ = true;
+    return;
+  }
   if (!on_route)
   {
     // Lost or initializing: the homing angle and the confidence count start afresh with the track.
@@ -260,6 +277,15 @@ void RouteFollower::computeTarget(double now_s)
                         params_.watchdog_timeout_s);
     return;
   }
+  if (foreign_stamp_ns_ != 0)
+  {
+    const size_t k = static_cast<size_t>(foreign_keyframe_);
+    reason_ = formatted("stopped: keyframe %.0f was taught at %.3f s in the localizer's map, at %.3f s in the "
+                        "follower's: they are different maps (load the same map in both)",
+                        static_cast<double>(k), 1e-9 * static_cast<double>(foreign_stamp_ns_),
+                        1e-9 * static_cast<double>(stamps_ns_[k]));
+    return;
+  }
   if (last_input_.status == LocalizationStatus::kLost)
   {
     creepOrStop("the localization is lost");
@@ -274,15 +300,6 @@ void RouteFollower::computeTarget(double now_s)
   {
     reason_ = "stopped: keyframe " + std::to_string(last_input_.keyframe) + " is not among the map's " +
               std::to_string(motion_.size()) + " keyframes (localizing against another map?)";
-    return;
-  }
-  const size_t k = static_cast<size_t>(last_input_.keyframe);
-  if (!stamps_ns_.empty() && last_input_.keyframe_stamp_ns != 0 && last_input_.keyframe_stamp_ns != stamps_ns_[k])
-  {
-    reason_ = formatted("stopped: keyframe %.0f was taught at %.3f s in the localizer's map, at %.3f s in the "
-                        "follower's: they are different maps (load the same map in both)",
-                        static_cast<double>(k), 1e-9 * static_cast<double>(last_input_.keyframe_stamp_ns),
-                        1e-9 * static_cast<double>(stamps_ns_[k]));
     return;
   }
   if (!confident_since_start_)
@@ -376,11 +393,12 @@ FollowerCommand RouteFollower::command(double now_s, double max_step_s)
   computeTarget(now_s);
   if (have_command_time_ && now_s < command_s_)
     command_s_ = now_s;  // time went back: no change in this call, ramps go on from here
-  const double dt = have_command_time_ ? std::min(std::max(0.0, now_s - command_s_), max_step_s) : 0.0;
+  const double elapsed = have_command_time_ ? std::max(0.0, now_s - command_s_) : 0.0;
+  const double dt = std::min(elapsed, max_step_s);
   command_.linear_mps = approach(command_.linear_mps, target_.linear_mps, params_.max_linear_accel * dt);
   command_.angular_rps = approach(command_.angular_rps, target_.angular_rps, params_.max_angular_accel * dt);
   if (creeping_)
-    crept_m_ += std::fabs(command_.linear_mps) * dt;
+    crept_m_ += std::fabs(command_.linear_mps) * elapsed;  // the whole gap: a stalled robot may have driven on
   command_s_ = now_s;
   have_command_time_ = true;
   return command_;

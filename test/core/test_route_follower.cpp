@@ -344,9 +344,48 @@ TEST(RouteFollower, StopsOnALocalizationFromAnotherMap)
   EXPECT_NE(std::string::npos, follower.reason().find("at 20.500 s in the localizer's map, at 10.500 s in the "
                                                       "follower's: they are different maps"))
       << follower.reason();
+  // Keyframe 0 from the other map, then lost: no creep along this map's motion from keyframe 0 (at
+  // slow_factor 0.5 x 0.4 m/s, recovery_distance 3 m), and an end of the route from the other map finishes
+  // nothing: stopped until a localization from this map comes.
+  arl::FollowerInput other = tracking(0, 0.9, 0.0);
+  other.keyframe_stamp_ns = 99000000000LL;
+  follower.localization(other, 0.3);
+  follower.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 0.4);
+  EXPECT_CLOSE(0.0, follower.command(0.5).linear_mps);
+  EXPECT_NE(std::string::npos, follower.reason().find("different maps")) << follower.reason();
+  input.status = arl::LocalizationStatus::kEndOfRoute;
+  follower.localization(input, 0.6);
+  EXPECT_CLOSE(0.0, follower.command(0.7).linear_mps);
+  EXPECT_EQ(arl::RouteFollower::State::kFollowing, follower.state());
+  input.status = arl::LocalizationStatus::kTracking;
+  input.keyframe_stamp_ns = 10500000000LL;
+  follower.localization(input, 0.8);
+  EXPECT_CLOSE(0.4, follower.command(0.9).linear_mps);
   input.keyframe_stamp_ns = 0;
-  follower.localization(input, 0.4);
-  EXPECT_CLOSE(0.4, follower.command(0.5).linear_mps);
+  follower.localization(input, 1.0);
+  EXPECT_CLOSE(0.4, follower.command(1.1).linear_mps);
+}
+
+TEST(RouteFollower, ACreepCountsAStalledControllersWholeGapAsDriven)
+{
+  // creepRoute and creepParams: a creep at 0.5 m/s for at most 1 m, 0.05 m per command 0.1 s apart; then
+  // the controller stalls for 10 s (a bounded ramp step of 0.1 s) while the robot may have driven on at its
+  // last command: 0.5 m/s x 10 s = 5 m more counted (0.05 with the step), past the recovery distance.
+  arl::RouteFollower follower = started(creepRoute(), creepParams());
+  follower.localization(tracking(1, 0.9, 0.0), 0.0);
+  follower.command(0.0, 0.1);
+  follower.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 0.05);
+  EXPECT_CLOSE(0.5, follower.command(0.1, 0.1).linear_mps);
+  EXPECT_TRUE(follower.creeping());
+  EXPECT_CLOSE(0.05, follower.creptDistance());
+  follower.command(0.2, 0.1);
+  EXPECT_CLOSE(0.1, follower.creptDistance());
+  follower.localization(tracking(-1, 0.0, 0.0, arl::LocalizationStatus::kLost), 10.15);
+  follower.command(10.2, 0.1);
+  EXPECT_NEAR(5.1, follower.creptDistance(), 1e-9);
+  follower.command(10.3, 0.1);
+  EXPECT_FALSE(follower.creeping());
+  EXPECT_NE(std::string::npos, follower.reason().find("crept")) << follower.reason();
 }
 
 TEST(RouteFollower, AfterALossOrALowConfidenceStopItCreepsABoundedDistanceAlongTheTaughtMotionThenStops)
