@@ -342,8 +342,8 @@ public:
   Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams& params);
 
   /// Applies new parameters between frames. Buffers are resized; the current match and status are
-  /// kept when the sequence settings allow it; a change of `method` starts over (reset()). Throws
-  /// std::invalid_argument for invalid params.
+  /// kept when the sequence settings allow it; a change of `method` starts over (reset(); after the first
+  /// frame from an unknown place, not start_keyframe). Throws std::invalid_argument for invalid params.
   void setParams(const LocalizerParams& params);
   /// Measures now, once per map and parameters, the map statistics the checks otherwise measure on the
   /// first check that needs them (the chance margins, chanceMargin: 20 x K whole-map rows, about 0.2 s for
@@ -488,6 +488,8 @@ private:
   bool textured(float energy) const { return energy >= map_stats_.min_texture_energy; }
   /// Status after construction or reset(): tracking from start_keyframe, or initializing.
   void start();
+  /// start(), or with from_start_keyframe false initializing whatever start_keyframe says (mid-drive).
+  void start(bool from_start_keyframe);
   /// While a known start (start_keyframe) is checked (the first K new views): the global search over the
   /// same rows (*elsewhere, no start) confirmed a place other than the track's (`track`), one the robot
   /// could have driven to (max_step keyframes a frame) from the check's first global answer: the robot did

@@ -194,13 +194,19 @@ Localizer::Localizer(std::shared_ptr<const RouteMap> map, const LocalizerParams&
 
 void Localizer::start()
 {
+  start(true);
+}
+
+void Localizer::start(bool from_start_keyframe)
+{
   state_ = State::kInitializing;  // the initial state: nothing to leave, so not a transition
   last_match_ = -1;
   lost_position_ = lost_anchor_ = -1.0;
   last_confident_ = -1;
   frames_since_confident_ = 0;
   newest_check_.end();
-  const bool known_start = params_.start_keyframe >= 0 && params_.method == SequenceMethod::kOnlineDtw;
+  const bool known_start =
+      from_start_keyframe && params_.start_keyframe >= 0 && params_.method == SequenceMethod::kOnlineDtw;
   start_.begin(known_start ? params_.start_keyframe : -1);
   posterior_.reset(static_cast<int>(map_->size()), start_.keyframe);
   if (!known_start)
@@ -264,7 +270,14 @@ void Localizer::setParams(const LocalizerParams& params)
     rebuildComparators();
   map_stats_.chance_margins.clear();  // chanceMargin depends on the comparison, eq. 2, the DTW and K
   if (method_changed)
-    reset();  // the other method starts over: the baseline has no lost state to leave, nor the DTW's track
+  {
+    // The other method starts over: the baseline has no lost state to leave, nor the DTW's track. Mid-drive
+    // from an unknown place (a global search), not at start_keyframe: the robot is somewhere along the route.
+    const bool under_way = frames_ > 0;
+    reset();
+    if (under_way)
+      start(false);
+  }
 }
 
 void Localizer::measureMapStatisticsNow()
@@ -1489,7 +1502,8 @@ void Localizer::measureChanceMargins()
       largest[rows] = largest[rows - 1];
   // Shorter still (under about 50 keyframes with the defaults), not one stretch leaves a wrong place even
   // for one row: chance cannot be measured on this map, and no margin is safe to beat, so none can be
-  // beaten (infinity): the checks never move the track or lose it there; the DTW alone answers.
+  // beaten (infinity): the checks that weigh against chance (contradiction_margin_share > 0, the coasting
+  // check's fix) never move the track or lose it there; the DTW alone answers.
   if (most > 0 && measured[1] == 0)
     std::fill(largest.begin() + 1, largest.end(), std::numeric_limits<float>::infinity());
   dtw_.setParams(tracking_dtw);

@@ -821,9 +821,10 @@ void MapWriter::flush()
     return;
   const std::string active = activePath();
   const bool first = written_ == 0;
-  // Room for each keyframe's bytes and records, and for every connection record the index will hold (one
-  // per topic per flush, each with its message definition): generous.
-  uint64_t needed = 64 * 1024 + static_cast<uint64_t>(flushes_ + 2) * 3 * 8 * 1024;
+  // What the file grows by, generously: each keyframe's bytes and records, and this flush's connection
+  // records (rosbag's Append truncates the old index and writes it again after the new chunks, with one
+  // new connection per topic, each with its message definition, a few KiB), and 64 KiB to spare.
+  uint64_t needed = 64 * 1024 + 3 * 8 * 1024;
   for (const sensor_msgs::ImageConstPtr& keyframe : pending_)
     needed += keyframe->data.size() + 1024;
   struct stat info;

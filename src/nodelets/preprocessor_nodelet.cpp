@@ -123,19 +123,22 @@ void PreprocessorNodelet::onInit()
   last_valid_config_ = PreprocessorConfig::__getDefault__();
   for (const std::string& sentence : mistypedParameters<PreprocessorConfig>(private_nh))
     NODELET_WARN("%s", sentence.c_str());
+  // The announcement's publisher before the reconfigure server: a set_parameters call may come while
+  // onInit goes on, and its configCb announces (under config_mutex_, as the server holds it).
+  const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
+  params_pub_ = nh.advertise<std_msgs::String>(params_topic, 1, true);
   reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<PreprocessorConfig>>(config_mutex_, private_nh);
   reconfigure_server_->setCallback([this](PreprocessorConfig& config, uint32_t level) { configCb(config, level); });
 
-  // Announce the starting parameters before any image, so downstream nodelets can check maps now.
+  // Announce the starting parameters before any image, so downstream nodelets can check maps now; under
+  // config_mutex_, so that a configCb running meanwhile comes before or after, not in between.
   PreprocessingParams initial;
   {
     std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
     initial = requested_params_;
+    preprocessor_.setParams(initial);
+    announce(initial);
   }
-  preprocessor_.setParams(initial);
-  const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
-  params_pub_ = nh.advertise<std_msgs::String>(params_topic, 1, true);
-  announce(initial);
 
   std::lock_guard<std::mutex> lock(connect_mutex_);
   const image_transport::SubscriberStatusCallback connect_cb =

@@ -1422,7 +1422,7 @@ TEST(Localizer, AGapOfKMinusOneFramesLosesTheTrackOneShorterDoesNot)
     }
 }
 
-TEST(Localizer, AChangeOfMethodStartsOverEvenWhileLost)
+TEST(Localizer, AChangeOfMethodStartsOverEvenWhileLostAndMidDriveFromAnUnknownPlace)
 {
   // Lost after a gap of 40 frames (K = 30), then switched to the baseline (rqt, between frames): the
   // baseline has no way out of lost, so before the change started over it answered lost for good. Now it
@@ -1437,7 +1437,7 @@ TEST(Localizer, AChangeOfMethodStartsOverEvenWhileLost)
   params.method = arl::SequenceMethod::kSeqSlam;
   localizer.setParams(params);
   EXPECT_EQ(0, localizer.costs().size());
-  for (int i = 62; i <= 90; ++i)
+  for (int i = 62; i <= 80; ++i)
   {
     const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i), (i + 1) * period);
     const bool tracking = i - 62 + 1 >= params.min_init_frames;
@@ -1446,6 +1446,23 @@ TEST(Localizer, AChangeOfMethodStartsOverEvenWhileLost)
     if (i - 62 + 1 >= params.seqslam.sequence_length)
     {
       EXPECT_EQ(i, result.keyframe) << "keyframe " << i;
+    }
+  }
+  // And back to the DTW mid-drive: from an unknown place (a global search), not the start keyframe 0
+  // (known, it would answer 0 and track from there): initializing, then tracking at the right keyframes.
+  ASSERT_EQ(0, params.start_keyframe);
+  params.method = arl::SequenceMethod::kOnlineDtw;
+  localizer.setParams(params);
+  const int first_tracking = (params.min_init_frames - 1) + (params.init_confirm_frames - 1);
+  for (int i = 81; i <= 90; ++i)
+  {
+    const arl::LocalizationResult result = localizer.process(keyframeCopy(*map, i), (i + 1) * period);
+    EXPECT_EQ(i - 81 >= first_tracking ? LocalizationStatus::kTracking : LocalizationStatus::kInitializing,
+              result.status)
+        << "keyframe " << i;
+    if (i - 81 >= first_tracking)
+    {
+      EXPECT_EQ(i, result.keyframe);
     }
   }
 }

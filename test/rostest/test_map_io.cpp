@@ -186,8 +186,19 @@ TEST_F(MapIoTest, AFlushWithoutRoomKeepsTheMapAndALaterFlushWritesEverything)
   ASSERT_EQ(0, getrlimit(RLIMIT_FSIZE, &old_limit));
   const sighandler_t old_handler = std::signal(SIGXFSZ, SIG_IGN);  // EFBIG instead of a signal
   struct rlimit limit = old_limit;
-  limit.rlim_cur = static_cast<rlim_t>(flushed + 3000);  // room for about one more keyframe, not forty
+  // Each keyframe is counted as its 2048 bytes + 1 KiB, the flush as 64 + 24 KiB more: room for 1 keyframe
+  // (91 KiB) under 100 KiB, not for 40 (208 KiB).
+  limit.rlim_cur = static_cast<rlim_t>(flushed + 100 * 1024);
   ASSERT_EQ(0, setrlimit(RLIMIT_FSIZE, &limit));
+  writer.add(keyframeMessage(randomKeyframe(rng), 19));
+  try
+  {
+    writer.flush();  // fits
+  }
+  catch (const MapError& e)
+  {
+    ADD_FAILURE() << "a flush that fits was refused: " << e.what();
+  }
   for (int k = 0; k < 40; ++k)
     writer.add(keyframeMessage(randomKeyframe(rng), 20 + k));
   std::string error;
@@ -205,13 +216,14 @@ TEST_F(MapIoTest, AFlushWithoutRoomKeepsTheMapAndALaterFlushWritesEverything)
   std::printf("the failed flush said: %s\n", error.c_str());
   EXPECT_TRUE(exists(file)) << "the final name lost the map flushed before";
   EXPECT_EQ("", readError(file));
-  EXPECT_EQ(4u, writer.written());
-  EXPECT_EQ(44u, writer.added());
+  EXPECT_EQ(5u, readMap(file).size());
+  EXPECT_EQ(5u, writer.written());
+  EXPECT_EQ(45u, writer.added());
 
   writer.flush();  // room again
-  EXPECT_EQ(44u, readMap(file).size());
+  EXPECT_EQ(45u, readMap(file).size());
   writer.close();
-  EXPECT_EQ(44u, readMap(file).size());
+  EXPECT_EQ(45u, readMap(file).size());
   EXPECT_FALSE(exists(file + ".active"));
 }
 
