@@ -180,6 +180,7 @@ private:
   bool have_input_ = false;
   FollowerInput last_input_;
   double last_input_s_ = 0.0;
+  bool last_on_route_ = false;          // the last localization was on this map's route (tracking or its end)
   double homing_filtered_rad_ = 0.0;
   int low_frames_ = 0;
   bool confident_since_start_ = false;  // a confident localization since start() or since the track began

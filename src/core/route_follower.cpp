@@ -177,25 +177,21 @@ bool RouteFollower::stop(std::string* message)
 
 void RouteFollower::localization(const FollowerInput& input, double now_s)
 {
-  const bool on_route =
+  // A localization on the route of another map (its keyframe's teach stamp and this map's both known, and
+  // different) says nothing about where the robot is on this one: until one on this map comes, lost and
+  // initializing ones included, the robot stops (computeTarget), creeps on nothing, and no end of route
+  // finishes it; the track's bookkeeping starts afresh as after a loss.
+  const bool tracked =
       input.status == LocalizationStatus::kTracking || input.status == LocalizationStatus::kEndOfRoute;
-  // A localization on the route of another map (its keyframe's teach stamp known and not this map's
-  // keyframe's) says nothing about where the robot is on this one: until one from this map comes, lost
-  // ones included, the robot stops (computeTarget), creeps on nothing, and no end of route finishes it.
-  const bool in_map = input.keyframe >= 0 && input.keyframe < static_cast<int>(motion_.size());
-  if (on_route && in_map && input.keyframe_stamp_ns != 0 && !stamps_ns_.empty())
-    foreign_stamp_ns_ = input.keyframe_stamp_ns != stamps_ns_[static_cast<size_t>(input.keyframe)] ?
-                            input.keyframe_stamp_ns :
-                            0;
-  if (foreign_stamp_ns_ != 0)
+  if (tracked && input.keyframe >= 0 && input.keyframe < static_cast<int>(motion_.size()))
   {
-    if (on_route)
+    const int64_t own = stamps_ns_.empty() ? 0 : stamps_ns_[static_cast<size_t>(input.keyframe)];
+    const bool foreign = input.keyframe_stamp_ns != 0 && own != 0 && input.keyframe_stamp_ns != own;
+    foreign_stamp_ns_ = foreign ? input.keyframe_stamp_ns : 0;
+    if (foreign)
       foreign_keyframe_ = input.keyframe;
-    last_input_ = input;
-    last_input_s_ = now_s;
-    have_input_ = true;
-    return;
   }
+  const bool on_route = tracked && foreign_stamp_ns_ == 0;
   if (!on_route)
   {
     // Lost or initializing: the homing angle and the confidence count start afresh with the track.
@@ -205,8 +201,7 @@ void RouteFollower::localization(const FollowerInput& input, double now_s)
   }
   else
   {
-    const bool was_on_route = have_input_ && (last_input_.status == LocalizationStatus::kTracking ||
-                                              last_input_.status == LocalizationStatus::kEndOfRoute);
+    const bool was_on_route = have_input_ && last_on_route_;
     if (std::isfinite(input.homing_angle_rad))
     {
       const double dt = std::max(0.0, now_s - last_input_s_);
@@ -232,8 +227,9 @@ void RouteFollower::localization(const FollowerInput& input, double now_s)
   }
   last_input_ = input;
   last_input_s_ = now_s;
+  last_on_route_ = on_route;
   have_input_ = true;
-  if (state_ == State::kFollowing && input.status == LocalizationStatus::kEndOfRoute)
+  if (state_ == State::kFollowing && on_route && input.status == LocalizationStatus::kEndOfRoute)
     state_ = State::kFinished;
 }
 

@@ -652,6 +652,7 @@ bool MapRecorderNodelet::pauseCb(std_srvs::Trigger::Request& /*req*/, std_srvs::
   if (res.success)
   {
     state_ = State::kPaused;
+    latest_while_recording_ = false;  // a silent motion topic: the interval across the pause is not taught
     res.message = "paused after " + std::to_string(keyframes_queued_) + " keyframes";
   }
   else

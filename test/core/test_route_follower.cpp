@@ -364,6 +364,25 @@ TEST(RouteFollower, StopsOnALocalizationFromAnotherMap)
   input.keyframe_stamp_ns = 0;
   follower.localization(input, 1.0);
   EXPECT_CLOSE(0.4, follower.command(1.1).linear_mps);
+  // The other map again, then a keyframe beyond this map's 2: stopped, naming the keyframe it could check.
+  follower.localization(other, 1.2);
+  arl::FollowerInput beyond = tracking(5, 0.9, 0.0);
+  beyond.keyframe_stamp_ns = 99000000000LL;
+  follower.localization(beyond, 1.3);
+  EXPECT_CLOSE(0.0, follower.command(1.35).linear_mps);
+  EXPECT_NE(std::string::npos, follower.reason().find("keyframe 0 was taught at 99.000 s")) << follower.reason();
+  // This map again, with low confidence: the track began again, so slow_factor (0.5 x 0.4 m/s) until a
+  // confident answer, not full speed.
+  arl::FollowerInput unsure = tracking(1, 0.1, 0.0);
+  unsure.keyframe_stamp_ns = 10500000000LL;
+  follower.localization(unsure, 1.4);
+  EXPECT_CLOSE(0.2, follower.command(1.5).linear_mps);
+
+  // A map taught from frames without stamps (0): nothing to check, every localization drives.
+  arl::RouteFollower unstamped = started({ motion(0.6, 0.1), motion(0.4, 0.0) }, immediate());
+  unstamped.setKeyframeStamps({ 0, 0 });
+  unstamped.localization(other, 0.0);
+  EXPECT_CLOSE(0.6, unstamped.command(0.1).linear_mps);
 }
 
 TEST(RouteFollower, ACreepCountsAStalledControllersWholeGapAsDriven)
