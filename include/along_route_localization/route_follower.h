@@ -120,9 +120,9 @@ public:
   /// Throws std::invalid_argument when invalid (the old ones stay).
   void setParams(const RouteFollowerParams& params);
   /// The teach-run stamp of each keyframe of the follower's map (one per keyframe of the motion; throws
-  /// std::invalid_argument otherwise). A localization whose keyframe_stamp_ns is known and differs from its
-  /// keyframe's here comes from another map: the robot stops (its index would drive this map's motion), and
-  /// stays stopped, lost localizations included, until one from this map comes.
+  /// std::invalid_argument otherwise). A localization whose keyframe_stamp_ns and its keyframe's stamp here
+  /// are both known (not 0) and differ comes from another map: the robot stops (its index would drive this
+  /// map's motion), and stays stopped, lost localizations included, until one from this map comes.
   void setKeyframeStamps(std::vector<int64_t> stamps_ns);
   const RouteFollowerParams& params() const { return params_; }
 
@@ -180,7 +180,7 @@ private:
   bool have_input_ = false;
   FollowerInput last_input_;
   double last_input_s_ = 0.0;
-  bool last_on_route_ = false;          // the last localization was on this map's route (tracking or its end)
+  bool last_on_route_ = false;  // the last localization was on this map's route (tracking or its end)
   double homing_filtered_rad_ = 0.0;
   int low_frames_ = 0;
   bool confident_since_start_ = false;  // a confident localization since start() or since the track began
