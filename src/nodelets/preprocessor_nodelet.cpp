@@ -60,13 +60,13 @@ private:
   std::shared_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostics_timer_;
 
-  // Written by configCb, read by imageCb; guarded by config_mutex_ (also the server's mutex).
+  // Held by the reconfigure server around configCb, and by onInit's first announcement.
   boost::recursive_mutex config_mutex_;
   std::shared_ptr<dynamic_reconfigure::Server<PreprocessorConfig>> reconfigure_server_;
   PreprocessorConfig last_valid_config_;
-  PreprocessingParams requested_params_;
 
-  // Used only from the nodelet's single-threaded callback queue (imageCb, configCb) after onInit.
+  // Used only from the nodelet's single-threaded callback queue (imageCb, configCb, which sets its
+  // parameters) after onInit.
   Preprocessor preprocessor_;
   // The diagnostics timer runs on the same queue, so these need no lock either.
   bool in_place_warned_ = false;
@@ -135,8 +135,7 @@ void PreprocessorNodelet::onInit()
   PreprocessingParams initial;
   {
     std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
-    initial = requested_params_;
-    preprocessor_.setParams(initial);
+    initial = preprocessor_.params();  // configCb's, from the server's first call
     announce(initial);
   }
 
@@ -198,12 +197,11 @@ void PreprocessorNodelet::configCb(PreprocessorConfig& config, uint32_t /*level*
   logConfigReview(review, getName(), "preprocessing parameters");
   if (!review.rejected.empty())
     return;
-  requested_params_ = params;
   // Applied and announced now, not at the next image: downstream nodelets check maps against the
   // announcement, and while no image comes (a localizer without a map does not subscribe, so none is
   // asked for) a map made with the new parameters was refused. The reconfigure service runs on the same
   // single-threaded queue as imageCb, so the announcement still comes before the first image made with them.
-  if (params_pub_ && params != preprocessor_.params())
+  if (params != preprocessor_.params())
   {
     preprocessor_.setParams(params);
     announce(params);
@@ -256,18 +254,7 @@ void PreprocessorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& 
 
 void PreprocessorNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
 {
-  PreprocessingParams params;
-  {
-    std::lock_guard<boost::recursive_mutex> lock(config_mutex_);
-    params = requested_params_;
-  }
-  if (params != preprocessor_.params())
-  {
-    preprocessor_.setParams(params);
-    announce(params);  // before the first image made with them
-    NODELET_INFO("Preprocessing parameters now %s", params.serialize().c_str());
-  }
-
+  const PreprocessingParams& params = preprocessor_.params();  // set by configCb, on this queue
   PixelFormat format;
   std::string problem;
   const ImageProblem kind = imageMessageProblem(*msg, &format, &problem);
