@@ -828,7 +828,7 @@ void MapWriter::flush()
   for (const sensor_msgs::ImageConstPtr& keyframe : pending_)
     needed += keyframe->data.size() + 1024;
   struct stat info;
-  const uint64_t size = (!first && ::stat(path_.c_str(), &info) == 0) ? static_cast<uint64_t>(info.st_size) : 0;
+  const uint64_t size = (!first && fileExists(path_, &info)) ? static_cast<uint64_t>(info.st_size) : 0;
   const std::string no_room = roomProblem(size, needed);
   if (!no_room.empty())
     throw MapError("no room to write " + std::to_string(pending_.size()) + " keyframes to " + inQuotes(path_) + ": " +
@@ -898,7 +898,7 @@ void MapWriter::writeOneConnectionPerTopic()
 {
   const std::string active = activePath();
   struct stat info;
-  const uint64_t size = ::stat(path_.c_str(), &info) == 0 ? static_cast<uint64_t>(info.st_size) : 0;
+  const uint64_t size = fileExists(path_, &info) ? static_cast<uint64_t>(info.st_size) : 0;
   const std::string no_room = roomProblem(0, size + 64 * 1024);
   if (!no_room.empty())
   {
