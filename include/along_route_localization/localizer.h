@@ -376,6 +376,8 @@ public:
   /// Forgets the sequence (e.g. time jumped back); the next frames initialize globally. The frame period
   /// learnt from the stamps is kept.
   void reset();
+  /// Forgets the sequence as reset() does; the next frames start as start(from_start_keyframe) says.
+  void reset(bool from_start_keyframe);
 
   const RouteMap& map() const { return *map_; }
   const CostRingBuffer& costs() const { return ring_; }

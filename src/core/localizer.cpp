@@ -273,10 +273,7 @@ void Localizer::setParams(const LocalizerParams& params)
   {
     // The other method starts over: the baseline has no lost state to leave, nor the DTW's track. Mid-drive
     // from an unknown place (a global search), not at start_keyframe: the robot is somewhere along the route.
-    const bool under_way = frames_ > 0;
-    reset();
-    if (under_way)
-      start(false);
+    reset(frames_ == 0);
   }
 }
 
@@ -408,6 +405,11 @@ void Localizer::rebuildComparators()
 
 void Localizer::reset()
 {
+  reset(true);
+}
+
+void Localizer::reset(bool from_start_keyframe)
+{
   ring_.clear();  // (state_ and last_match_: start())
   confirmation_.clear();
   loss_.clear();
@@ -420,7 +422,7 @@ void Localizer::reset()
   cruise_ = confirmed_cruise_ = CruiseSpeed();
   recent_count_ = recent_next_ = 0;
   clock_.forgetLastStamp();
-  start();
+  start(from_start_keyframe);
 }
 
 int Localizer::keyframeThroughRun(int dtw_keyframe)
