@@ -55,7 +55,8 @@ struct RouteFollowerParams
   /// stands brings the localizer no new view, so it could never find the route again.
   double recovery_distance_m = 3.0;
   double watchdog_timeout_s = 1.0;      ///< stop when no localization came for this long, s
-  double max_linear_accel = 0.5;        ///< bound of the change of the forward speed, m/s^2
+  double max_linear_accel = 0.5;        ///< bound of the rise of the forward speed |v|, m/s^2
+  double max_linear_decel = 0.5;        ///< bound of the fall of the forward speed |v| (braking, a stop), m/s^2
   double max_angular_accel = 1.0;       ///< bound of the change of the turn rate, rad/s^2
 
   /// Empty when valid, else a sentence naming the first parameter outside its table range (by the name users
@@ -92,8 +93,8 @@ struct FollowerCommand
 /// low confidence, until the first confident localization after start() or after the track began: the
 /// robot standing still shows the localizer no new view, so a stop there would never end, and its
 /// loss detection stops the robot if no confident answer comes), approached from the
-/// previous command at no more than max_linear_accel / max_angular_accel: a jump of the matched keyframe or
-/// a stop never makes a jump in the command. The taught turn rate is scaled like the speed so that the
+/// previous command at no more than max_linear_accel (speeding up) or max_linear_decel (slowing down) and
+/// max_angular_accel: a jump of the matched keyframe or a stop never makes a jump in the command. The taught turn rate is scaled like the speed so that the
 /// path keeps the taught curvature. A stop for low confidence or a loss comes after a creep (creepOrStop):
 /// s = slow_factor, the motion taught on from the last tracked keyframe reckoned by the distance crept, no
 /// homing term, at most recovery_distance_m, waiting while the view is featureless; a standing robot would

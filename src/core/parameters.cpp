@@ -355,8 +355,12 @@ std::vector<ParameterSpec> makeTable()
                              FIELD(follower.recovery_distance_m))));
   t.push_back(user(numberRow("watchdog_timeout", fol, 0.01, 60, "s", "Stop when no localization came for this long",
                              FIELD(follower.watchdog_timeout_s))));
-  t.push_back(user(numberRow("max_linear_accel", fol, 0.001, 100, "m/s^2", "Bound of the change of the forward speed",
+  t.push_back(user(numberRow("max_linear_accel", fol, 0.001, 100, "m/s^2",
+                             "Bound of the rise of the forward speed (speeding up)",
                              FIELD(follower.max_linear_accel))));
+  t.push_back(user(numberRow("max_linear_decel", fol, 0.001, 100, "m/s^2",
+                             "Bound of the slowing of the forward speed (braking, a stop)",
+                             FIELD(follower.max_linear_decel))));
   t.push_back(user(numberRow("max_angular_accel", fol, 0.001, 100, "rad/s^2", "Bound of the change of the turn rate",
                              FIELD(follower.max_angular_accel))));
   return t;

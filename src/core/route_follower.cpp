@@ -24,6 +24,21 @@ double approach(double from, double to, double max_step)
   return to;
 }
 
+/// The forward speed from `from` towards `to` after dt: |v| grows at most `accel`, falls (towards 0) at most
+/// `decel`; a change of direction brakes to 0 first, then speeds up the other way with the time left.
+double rampSpeed(double from, double to, double accel, double decel, double dt)
+{
+  const bool reverses = from * to < 0.0;
+  const bool slowing = reverses || std::fabs(to) < std::fabs(from);
+  if (!slowing)
+    return approach(from, to, accel * dt);
+  const double brake_to = reverses ? 0.0 : to;
+  const double braking_s = std::fabs(from - brake_to) / decel;
+  if (dt <= braking_s || !reverses)
+    return approach(from, brake_to, decel * dt);
+  return approach(0.0, to, accel * (dt - braking_s));
+}
+
 std::string formatted(const char* format, double a, double b = 0.0, double c = 0.0)
 {
   char text[256];
@@ -391,7 +406,8 @@ FollowerCommand RouteFollower::command(double now_s, double max_step_s)
     command_s_ = now_s;  // time went back: no change in this call, ramps go on from here
   const double elapsed = have_command_time_ ? std::max(0.0, now_s - command_s_) : 0.0;
   const double dt = std::min(elapsed, max_step_s);
-  command_.linear_mps = approach(command_.linear_mps, target_.linear_mps, params_.max_linear_accel * dt);
+  command_.linear_mps =
+      rampSpeed(command_.linear_mps, target_.linear_mps, params_.max_linear_accel, params_.max_linear_decel, dt);
   command_.angular_rps = approach(command_.angular_rps, target_.angular_rps, params_.max_angular_accel * dt);
   if (creeping_)
     crept_m_ += std::fabs(command_.linear_mps) * elapsed;  // the whole gap: a stalled robot may have driven on

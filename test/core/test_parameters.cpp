@@ -359,15 +359,16 @@ TEST(ParameterTiers, TheUserTierIsTheseRowsAndEveryOtherIsAdvanced)
                             "end_of_route_keyframes" };
   const Names recorder = { "every_nth", "min_time_gap", "min_appearance_change", "min_distance" };
   const Names follower = { "homing_gain",       "max_homing_turn_rate", "speed_factor",     "min_confidence",
-                           "recovery_distance", "watchdog_timeout",     "max_linear_accel", "max_angular_accel" };
+                           "recovery_distance", "watchdog_timeout",     "max_linear_accel", "max_linear_decel",
+                           "max_angular_accel" };
   EXPECT_EQ(preprocessor, arl::parameterNamesOf(arl::ParameterGroup::kPreprocessor, arl::ParameterTier::kUser));
   EXPECT_EQ(localizer, arl::parameterNamesOf(arl::ParameterGroup::kLocalizer, arl::ParameterTier::kUser));
   EXPECT_EQ(recorder, arl::parameterNamesOf(arl::ParameterGroup::kMapRecorder, arl::ParameterTier::kUser));
   EXPECT_EQ(follower, arl::parameterNamesOf(arl::ParameterGroup::kRouteFollower, arl::ParameterTier::kUser));
   EXPECT_LE(localizer.size(), 15u);
-  // The rest of the 83 rows (9 + 58 + 4 + 12) is advanced: 3 of the preprocessor, 44 of the localizer,
+  // The rest of the 84 rows (9 + 58 + 4 + 13) is advanced: 3 of the preprocessor, 44 of the localizer,
   // none of the recorder, 4 of the follower.
-  EXPECT_EQ(83u, arl::parameterTable().size());
+  EXPECT_EQ(84u, arl::parameterTable().size());
   EXPECT_EQ(3u, arl::parameterNamesOf(arl::ParameterGroup::kPreprocessor, arl::ParameterTier::kAdvanced).size());
   EXPECT_EQ(44u, arl::parameterNamesOf(arl::ParameterGroup::kLocalizer, arl::ParameterTier::kAdvanced).size());
   EXPECT_EQ(0u, arl::parameterNamesOf(arl::ParameterGroup::kMapRecorder, arl::ParameterTier::kAdvanced).size());

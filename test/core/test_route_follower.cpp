@@ -44,6 +44,7 @@ arl::RouteFollowerParams immediate()
   arl::RouteFollowerParams params;
   params.homing_time_constant_s = 0.0;
   params.max_linear_accel = 100.0;
+  params.max_linear_decel = 100.0;
   params.max_angular_accel = 100.0;
   return params;
 }
@@ -200,6 +201,7 @@ TEST(RouteFollower, AKeyframeJumpRampsTheCommandAtTheAccelerationLimits)
 {
   arl::RouteFollowerParams params = immediate();
   params.max_linear_accel = 0.5;
+  params.max_linear_decel = 0.5;
   params.max_angular_accel = 1.0;
   params.homing_gain = 0.0;
   std::vector<arl::TaughtMotion> taught(11, motion(0.2, 0.0));
@@ -226,10 +228,41 @@ TEST(RouteFollower, AKeyframeJumpRampsTheCommandAtTheAccelerationLimits)
   EXPECT_CLOSE(0.1, command.angular_rps);
 }
 
+TEST(RouteFollower, BrakesAtTheDecelerationLimitAndSpeedsUpAtTheAccelerationLimit)
+{
+  arl::RouteFollowerParams params = immediate();
+  params.max_linear_accel = 0.5;
+  params.max_linear_decel = 2.0;
+  params.homing_gain = 0.0;
+  // Keyframe 1 was taught backing up.
+  arl::RouteFollower follower = started({ motion(1.0, 0.0), motion(-0.3, 0.0) }, params);
+  follower.localization(tracking(0, 0.9, 0.0), 0.0);
+  EXPECT_CLOSE(0.0, follower.command(0.0).linear_mps);
+  EXPECT_CLOSE(0.1, follower.command(0.2).linear_mps);  // speeding up: 0.5 m/s^2 x 0.2 s
+  EXPECT_CLOSE(0.2, follower.command(0.4).linear_mps);
+  // Backing up: brake to 0 at 2 m/s^2 (0.1 s), then 0.1 s the other way at 0.5 m/s^2.
+  follower.localization(tracking(1, 0.9, 0.0), 0.4);
+  EXPECT_CLOSE(-0.05, follower.command(0.6).linear_mps);
+  // Slowing while backing up brakes too: the target -0.15 (half speed) from -0.3 in 0.075 s at 2 m/s^2.
+  EXPECT_CLOSE(-0.3, follower.command(1.1).linear_mps);
+  params.slow_factor = 0.5;
+  params.slow_after_frames = 1;
+  follower.setParams(params);
+  follower.localization(tracking(1, 0.1, 0.0), 1.1);
+  EXPECT_CLOSE(-0.2, follower.command(1.15).linear_mps);  // 2 m/s^2 x 0.05 s
+  EXPECT_CLOSE(-0.15, follower.command(1.2).linear_mps);
+  // A pause stops at 2 m/s^2 too.
+  std::string message;
+  EXPECT_TRUE(follower.pause(&message)) << message;
+  EXPECT_CLOSE(-0.05, follower.command(1.25).linear_mps);
+  EXPECT_CLOSE(0.0, follower.command(1.3).linear_mps);
+}
+
 TEST(RouteFollower, StopsAtTheEndOfTheRouteUntilStartedAgain)
 {
   arl::RouteFollowerParams params = immediate();
   params.max_linear_accel = 1.0;
+  params.max_linear_decel = 1.0;
   arl::RouteFollower follower = started({ motion(0.5, 0.0), motion(0.5, 0.0), motion(0.5, 0.0) }, params);
   follower.localization(tracking(1, 0.9, 0.0), 0.0);
   EXPECT_CLOSE(0.5, follower.command(1.0).linear_mps);
@@ -253,6 +286,7 @@ TEST(RouteFollower, WatchdogStopsWhenLocalizationsStopComing)
   arl::RouteFollowerParams params = immediate();
   params.watchdog_timeout_s = 0.5;
   params.max_linear_accel = 2.0;
+  params.max_linear_decel = 2.0;
   arl::RouteFollower follower = started({ motion(0.6, 0.0) }, params);
   follower.localization(tracking(0, 0.9, 0.0), 10.0);
   EXPECT_CLOSE(0.6, follower.command(10.5).linear_mps);  // 0.5 s silence: not more than the timeout
@@ -268,6 +302,7 @@ TEST(RouteFollower, TimeGoingBackStopsUntilTheNextLocalization)
 {
   arl::RouteFollowerParams params = immediate();
   params.max_linear_accel = 1.0;
+  params.max_linear_decel = 1.0;
   arl::RouteFollower follower = started({ motion(0.6, 0.0) }, params);
   follower.localization(tracking(0, 0.9, 0.0), 100.0);
   EXPECT_CLOSE(0.6, follower.command(100.5).linear_mps);
@@ -284,6 +319,7 @@ TEST(RouteFollower, TimeJumpingAheadChangesTheCommandByOneBoundedStep)
 {
   arl::RouteFollowerParams params = immediate();
   params.max_linear_accel = 1.0;
+  params.max_linear_decel = 1.0;
   params.max_angular_accel = 2.0;
   arl::RouteFollower follower = started({ motion(0.6, 0.2) }, params);
   follower.localization(tracking(0, 0.9, 0.0), 0.0);

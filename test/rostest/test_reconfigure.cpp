@@ -63,6 +63,7 @@ TEST(Reconfigure, RouteFollowerCfgDefaultsAreTheCoreDefaults)
   EXPECT_DOUBLE_EQ(core.recovery_distance_m, cfg.recovery_distance_m);
   EXPECT_DOUBLE_EQ(core.watchdog_timeout_s, cfg.watchdog_timeout_s);
   EXPECT_DOUBLE_EQ(core.max_linear_accel, cfg.max_linear_accel);
+  EXPECT_DOUBLE_EQ(core.max_linear_decel, cfg.max_linear_decel);
   EXPECT_DOUBLE_EQ(core.max_angular_accel, cfg.max_angular_accel);
   // Each field from its own config field: values no default has come through.
   arl::RouteFollowerConfig config = arl::RouteFollowerConfig::__getDefault__();
@@ -70,7 +71,9 @@ TEST(Reconfigure, RouteFollowerCfgDefaultsAreTheCoreDefaults)
   config.homing_time_constant = 0.75;
   config.watchdog_timeout = 2.5;
   config.recovery_distance = 7.5;
+  config.max_linear_decel = 1.25;
   const arl::RouteFollowerParams changed = arl::toParams(config);
+  EXPECT_DOUBLE_EQ(1.25, changed.max_linear_decel);
   EXPECT_DOUBLE_EQ(7.5, changed.recovery_distance_m);
   EXPECT_DOUBLE_EQ(0.25, changed.max_homing_turn_rps);
   EXPECT_DOUBLE_EQ(0.75, changed.homing_time_constant_s);
