@@ -32,9 +32,11 @@ std::string mistypedSentence(const std::string& name, const XmlRpc::XmlRpcValue&
                              const std::string& kept);
 
 /// For each parameter of a dynamic_reconfigure config set under private_nh with a value of another type
-/// (a string for a number, a fraction for an integer): dynamic_reconfigure keeps its default for such a
-/// value without a word. Call before creating the reconfigure server. (A value of the right type outside
-/// the working range reaches the config callback, which corrects it.)
+/// (a string for a number, a fraction for an integer): a sentence for the log, and the config's default
+/// set in its place on the parameter server, so that the reconfigure server starts from the value the
+/// sentence says is kept (it would keep the default for a string without a word, and read a fraction for
+/// an integer rounded by roscpp: 12.7 as 13, NaN as INT_MIN). Call before creating the reconfigure server.
+/// (A value of the right type outside the working range reaches the config callback, which corrects it.)
 template <class Config>
 std::vector<std::string> mistypedParameters(const ros::NodeHandle& private_nh)
 {
@@ -61,13 +63,25 @@ std::vector<std::string> mistypedParameters(const ros::NodeHandle& private_nh)
     description->getValue(defaults, kept);
     std::string kept_text;
     if (description->type == "int")
+    {
       kept_text = std::to_string(boost::any_cast<int>(kept));
+      private_nh.setParam(description->name, boost::any_cast<int>(kept));
+    }
     else if (description->type == "double")
+    {
       kept_text = std::to_string(boost::any_cast<double>(kept));
+      private_nh.setParam(description->name, boost::any_cast<double>(kept));
+    }
     else if (description->type == "str")
+    {
       kept_text = boost::any_cast<std::string>(kept);
+      private_nh.setParam(description->name, kept_text);
+    }
     else
+    {
       kept_text = boost::any_cast<bool>(kept) ? "true" : "false";
+      private_nh.setParam(description->name, boost::any_cast<bool>(kept));
+    }
     sentences.push_back(mistypedSentence(description->name, value, description->type, kept_text));
   }
   return sentences;

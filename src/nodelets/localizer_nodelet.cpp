@@ -295,11 +295,12 @@ void LocalizerNodelet::onInit()
     min_rate_hz_ = 1.0;
     max_rate_hz_ = 1000.0;
   }
+  // Before staticParams, which reads ~ring_buffer_rows too: a mistyped value is replaced by the default first.
+  for (const std::string& sentence : mistypedParameters<LocalizerConfig>(private_nh))
+    NODELET_WARN("%s", sentence.c_str());
   requested_params_ = staticParams(private_nh);
 
   last_valid_config_ = LocalizerConfig::__getDefault__();
-  for (const std::string& sentence : mistypedParameters<LocalizerConfig>(private_nh))
-    NODELET_WARN("%s", sentence.c_str());
   reconfigure_server_ = std::make_shared<dynamic_reconfigure::Server<LocalizerConfig>>(config_mutex_, private_nh);
   reconfigure_server_->setCallback([this](LocalizerConfig& config, uint32_t level) { configCb(config, level); });
   {

@@ -518,6 +518,8 @@ class RobustnessTest(unittest.TestCase):
             # Valid only together (the default minimum is 0.8): both must be taken.
             'seqslam_min_velocity': 0.1, 'seqslam_max_velocity': 0.5,
             'max_step': 0,
+            # A fraction for an integer: roscpp would read it rounded (13) under a log saying 30 is kept.
+            'ring_buffer_rows': 12.7,
             'ring_bufer_rows': 10,
             'normalization_strength': 0.2,
             'motion_type': 'odom',
@@ -527,11 +529,14 @@ class RobustnessTest(unittest.TestCase):
                          "~motion_type 'odom' is not one of none | twist | odometry; using none: the images alone",
                          "~cost_function 'SAD' is not one of sad | census; keeping sad",
                          'max_step 0 is outside 1 .. 16 keyframes per frame; using 1',
+                         '~ring_buffer_rows = 12.700000 is not an integer; refused, keeping 30',
                          '~ring_bufer_rows is not a parameter of the localizer and is ignored (did you mean '
                          'ring_buffer_rows?). It reads: ',
                          "~normalization_strength is not read here: it is the preprocessor's"):
                 fx.wait_for(lambda: self.rosout.matching(text), 10, 'a message starting %r' % text)
             self.assertEqual(self.rosout.matching('Ignoring ~seqslam'), [])
+            # The value the log says is kept is the one used (the reconfigure server writes it back).
+            self.assertEqual(rospy.get_param(name + '/ring_buffer_rows'), 30)
             # What is used is said once: the corrected value, the values taken.
             self.assertTrue(self.rosout.matching('exclusion_radius 5 -> 1'))
             self.assertTrue(self.rosout.matching('min_init_frames 5 -> 25'))
