@@ -43,6 +43,30 @@ def inside_folder(path, folder):
     return inner == outer or inner.startswith(outer.rstrip(os.sep) + os.sep)
 
 
+def same_file(a, b):
+    """Whether two paths name one file: equal with symlinks resolved, or, when both exist, one inode (a hard
+    link). Neither has to exist."""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def output_input_clash(outputs, inputs):
+    """The first output that names an input file, or another output: "--write-results 'x.csv' names the same
+    file as --ground-truth"; None when none does. outputs and inputs: (option, path) pairs, path None when
+    not given. A tool that opened its output first would destroy the input it was about to read."""
+    given_inputs = [(option, path) for option, path in inputs if path]
+    given_outputs = [(option, path) for option, path in outputs if path]
+    for i, (option, path) in enumerate(given_outputs):
+        for other, other_path in given_inputs + given_outputs[:i]:
+            if same_file(path, other_path):
+                return "%s '%s' names the same file as %s; choose another file" % (option, path, other)
+    return None
+
+
 TOPIC_NAME = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
 
 

@@ -239,6 +239,53 @@ class EvaluateEndToEndTest(unittest.TestCase):
         for name in ("matches.png", "precision_recall.png", "cost_matrix.png"):
             self.assertGreater(os.path.getsize(os.path.join(plots, name)), 1000, name)
 
+    def test_a_bad_cost_matrix_is_refused_or_named(self):
+        plots = os.path.join(self.tmp, "plots")
+        cost = os.path.join(self.tmp, "cost.npy")
+        for matrix, message in ((np.zeros((2, 2, 2)), "has 3 dimensions 2x2x2; it must be 2 (queries x keyframes)"),
+                                (np.full((6, 7), np.nan), "holds no finite value")):
+            np.save(cost, matrix)
+            code, _, err = self.run_main([self.results, "--identity", "--plots", plots, "--cost-matrix", cost])
+            self.assertEqual(code, 2, message)
+            self.assertIn(message, err)
+        np.save(cost, np.zeros((5, 7)))
+        code, _, err = self.run_main([self.results, "--identity", "--plots", plots, "--cost-matrix", cost])
+        self.assertEqual(code, 0, err)
+        self.assertIn("has 5 rows for 6 result rows; only the queries it holds are drawn", err)
+
+    def test_an_output_that_names_an_input_is_refused_and_the_input_kept(self):
+        gt = os.path.join(self.tmp, "gt.csv")
+        write(gt, "query_index,keyframe\n" + "".join("%d,%d\n" % (i, i) for i in range(6)))
+        link = os.path.join(self.tmp, "link.csv")
+        os.symlink(self.results, link)
+        for args, message in (([self.results, "-g", gt, "--output-json", gt],
+                               "--output-json '%s' names the same file as --ground-truth" % gt),
+                              ([self.results, "--identity", "--output-json", link],
+                               "--output-json '%s' names the same file as the results CSV" % link),
+                              ([self.results, "--identity", "--plots", self.tmp, "--cost-matrix",
+                                os.path.join(self.tmp, "matches.png")],
+                               "--plots '%s' names the same file as --cost-matrix" % os.path.join(self.tmp, "matches.png"))):
+            with contextlib.redirect_stderr(io.StringIO()) as err:
+                with self.assertRaises(SystemExit) as caught:
+                    evaluate.main(args)
+            self.assertEqual(caught.exception.code, 2, args)
+            self.assertIn(message, err.getvalue())
+        with open(self.results) as f:
+            self.assertEqual(f.read(), SIX_QUERIES)
+        with open(gt) as f:
+            self.assertTrue(f.read().startswith("query_index,keyframe\n0,0\n"))
+
+    def test_a_keyframe_below_minus_one_is_refused_and_a_confidence_outside_0_1_named(self):
+        bad = os.path.join(self.tmp, "bad.csv")
+        write(bad, SIX_QUERIES.replace("3,3,0.4,", "3,-7,0.4,"))
+        code, _, err = self.run_main([bad, "--identity"])
+        self.assertEqual(code, 2)
+        self.assertIn("row 5: keyframe must be >= 0, or -1 for no answer, not -7", err)
+        write(bad, SIX_QUERIES.replace("3,3,0.4,", "3,3,1.7,"))
+        code, _, err = self.run_main([bad, "--identity"])
+        self.assertEqual(code, 0, err)
+        self.assertIn("1 confidence(s) outside [0, 1]", err)
+
     def test_bad_input_exits_nonzero(self):
         bad = os.path.join(self.tmp, "bad.csv")
         write(bad, "query_index,keyframe\n0,0\n")
@@ -411,6 +458,39 @@ class BagInputTest(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("frames 2 and 3 of /camera/image_raw have the same stamp", err)  # the bag is read in time order
 
+    def localizations_with(self, message_index, field, value):
+        """A copy of the localization bag (localization_bad.bag) whose message message_index has field = value."""
+        import rosbag
+        path = os.path.join(self.tmp, "localization_bad.bag")
+        with rosbag.Bag(self.localization_bag) as bag, rosbag.Bag(path, "w") as out:
+            for n, (topic, m, t) in enumerate(bag.read_messages()):
+                if n == message_index:
+                    setattr(m, field, value)
+                out.write(topic, m, t)
+        return path
+
+    def test_a_message_the_csv_would_refuse_is_refused(self):
+        for field, value, message in (
+                ("confidence", float("nan"), ": confidence must be a finite number, not nan"),
+                ("status", 9, " has status 9, not one of 0 initializing, 1 tracking, 2 lost, 3 end_of_route"),
+                ("keyframe", -7, ": keyframe must be >= 0, or -1 for no answer, not -7")):
+            bad = self.localizations_with(1, field, value)
+            code, _, err = self.run_main(["--localization-bag", bad, "--query-bag", self.query_bag, "--identity"])
+            self.assertEqual(code, 2, field)
+            self.assertIn("message 1 of /localization (frame 1)" + message, err)
+
+    def test_a_recording_of_a_looping_play_is_refused(self):
+        import rosbag
+        with rosbag.Bag(self.localization_bag) as bag:
+            first = next(m for _, m, _ in bag.read_messages())
+        with rosbag.Bag(self.localization_bag, "a") as bag:  # the first frame answered again, a loop later
+            first.keyframe = 4
+            bag.write("/localization", first, first.header.stamp + rospy_duration(100))
+        code, _, err = self.run_main(self.bags("--identity"))
+        self.assertEqual(code, 2)
+        self.assertIn("messages 0 and 6 of /localization answer frame 0 of %s: the recording holds more than one "
+                      "run of that bag (a looping rosbag play?)" % self.query_bag, err)
+
     def test_either_a_csv_or_both_bags(self):
         for args, message in ((["--identity", "--query-bag", self.query_bag],
                                "--localization-bag and --query-bag go together"),
@@ -424,6 +504,11 @@ class BagInputTest(unittest.TestCase):
                     evaluate.main(args)
             self.assertEqual(caught.exception.code, 2, args)
             self.assertIn(message, err.getvalue())
+
+
+def rospy_duration(seconds):
+    import rospy
+    return rospy.Duration(seconds)
 
 
 class IndexListTest(unittest.TestCase):
