@@ -159,8 +159,10 @@ struct ParameterEntry
 /// top-level section headers such as "localizer:" whose indented entries are read the same way) without
 /// applying them. The entries of "map_recorder:" and "route_follower:" sections are skipped, so the launch
 /// files' params_file (sections preprocessor:, map_recorder:, localizer:, route_follower:) can be given as
-/// it is. Returns false with *error naming the file and line when the file cannot be read or a line is not
-/// "name: value".
+/// it is. Returns false with *error naming the file and line when the file cannot be read, a line is not
+/// "name: value", or YAML (which the launch files read the file as) would read it otherwise: a header that
+/// is not one of those four sections, flow style ("localizer: {max_step: 3}"), a tab or an indentation
+/// YAML refuses.
 bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* entries, std::string* error);
 
 /// Applies the entries read from `path` in file order. Returns false with *error naming the file and line

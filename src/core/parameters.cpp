@@ -742,34 +742,57 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
     *error = "cannot open parameter file '" + path + "'";
     return false;
   }
+  // The launch files load the same file with rosparam, which reads YAML: what YAML reads otherwise (a section
+  // of another name, flow style, an indentation YAML refuses) is an error here, not a different meaning.
+  static const std::set<std::string> kSections = { "preprocessor", "localizer", "map_recorder", "route_follower" };
   std::string line;
   int number = 0;
-  bool skipped_section = false;
+  bool in_section = false, skipped_section = false;
+  size_t section_indent = std::string::npos;  // of the open section's entries, once its first one is read
+  const auto fail = [&](const std::string& why) {
+    entries->clear();
+    *error = path + ":" + std::to_string(number) + ": " + why;
+    return false;
+  };
   while (std::getline(in, line))
   {
     ++number;
     const std::string content = trim(line.substr(0, line.find('#')));
     if (content.empty())
       continue;
+    const size_t indent = line.find_first_not_of(' ');
+    if (line[indent] == '\t')
+      return fail("a tab in the indentation (YAML, which the launch files read the file as, allows spaces only)");
     const size_t colon = content.find(':');
     if (colon == std::string::npos)
-    {
-      *error = path + ":" + std::to_string(number) + ": expected 'name: value'";
-      return false;
-    }
+      return fail("expected 'name: value'");
     const std::string name = trim(content.substr(0, colon));
     const std::string value = trim(content.substr(colon + 1));
-    const bool indented = line[0] == ' ' || line[0] == '\t';
+    const bool indented = indent > 0;
+    if (!value.empty() && (value[0] == '{' || value[0] == '['))
+      return fail("'" + name + ": " + value + "' is YAML's flow style, not read here: write one 'name: value' per line" +
+                  (value[0] == '{' ? " under '" + name + ":'" : std::string()));
     if (value.empty())
     {
       // A section header. The launch files' params_file has preprocessor:, map_recorder:, localizer: and
       // route_follower: sections; the recorder's and the follower's settings do not concern the localizer.
-      if (!indented)
-        skipped_section = name == "map_recorder" || name == "route_follower";
+      if (indented || !kSections.count(name))
+        return fail("'" + name + ":' has no value and is not a section the launch files read (" +
+                    "preprocessor:, localizer:, map_recorder:, route_follower:, each at the start of a line)");
+      in_section = true;
+      section_indent = std::string::npos;
+      skipped_section = name == "map_recorder" || name == "route_follower";
       continue;
     }
     if (!indented)
-      skipped_section = false;
+      in_section = skipped_section = false;
+    else if (!in_section)
+      return fail("'" + name + "' is indented but under no section (YAML refuses that)");
+    else if (section_indent == std::string::npos)
+      section_indent = indent;
+    else if (indent != section_indent)
+      return fail("'" + name + "' is indented by " + std::to_string(indent) + " spaces, the entries above it by " +
+                  std::to_string(section_indent) + " (YAML refuses that)");
     if (!skipped_section)
       entries->push_back({ name, value, number });
   }

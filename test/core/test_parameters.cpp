@@ -136,6 +136,29 @@ TEST_F(ParameterFile, EntriesAreReadWithTheirLinesAndAppliedLater)
   EXPECT_NE(std::string::npos, error.find(path_ + ":1: expected 'name: value'")) << error;
 }
 
+TEST_F(ParameterFile, WhatTheLaunchFilesYamlWouldReadOtherwiseIsAnErrorNamingTheLine)
+{
+  // A misspelt section: rosparam loads it where no nodelet reads it, and the line reader took its entries
+  // as the localizer's.
+  EXPECT_EQ(path_ + ":1: 'localiser:' has no value and is not a section the launch files read (preprocessor:, "
+                    "localizer:, map_recorder:, route_follower:, each at the start of a line)",
+            load("localiser:\n  ring_buffer_rows: 10\n"));
+  // Flow style: rosparam reads the values, the line reader saw an unknown parameter 'localizer'.
+  EXPECT_EQ(path_ + ":2: 'localizer: {ring_buffer_rows: 10, max_step: 3}' is YAML's flow style, not read here: "
+                    "write one 'name: value' per line under 'localizer:'",
+            load("# tuned\nlocalizer: {ring_buffer_rows: 10, max_step: 3}\n"));
+  // Indentation YAML refuses: rosparam (and so roslaunch) refuses the file.
+  EXPECT_EQ(path_ + ":3: 'max_step' is indented by 3 spaces, the entries above it by 2 (YAML refuses that)",
+            load("localizer:\n  ring_buffer_rows: 10\n   max_step: 3\n"));
+  EXPECT_EQ(path_ + ":1: 'max_step' is indented but under no section (YAML refuses that)", load("  max_step: 3\n"));
+  EXPECT_EQ(path_ + ":2: a tab in the indentation (YAML, which the launch files read the file as, allows spaces only)",
+            load("localizer:\n\tmax_step: 3\n"));
+  // Each section sets its own indentation; a flat file and a section after it read as before.
+  EXPECT_EQ("", load("preprocessor:\n    sky_fraction: 0.25\nlocalizer:\n  max_step: 3\nring_buffer_rows: 12\n"));
+  EXPECT_EQ(3, localizer_.dtw.max_step);
+  EXPECT_EQ(12, localizer_.ring_buffer_rows);
+}
+
 TEST(ParameterNames, EachNameSetsAFieldOfItsOwnGroupOnly)
 {
   // A name is the preprocessor's exactly when setting it changes PreprocessingParams; checked by
