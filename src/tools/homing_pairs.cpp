@@ -122,6 +122,24 @@ double phaseCorrelationShift(const cv::Mat& keyframe, const cv::Mat& query, cons
   return cv::phaseCorrelate(k, q, window).x;
 }
 
+/// The whole of `text` as a finite number (no trailing characters: "12abc" is not 12).
+bool wholeNumber(const std::string& text, double* value)
+{
+  char* end = nullptr;
+  *value = std::strtod(text.c_str(), &end);
+  return !text.empty() && end == text.c_str() + text.size() && std::isfinite(*value);
+}
+
+/// The whole of `text` as an integer.
+bool wholeInteger(const std::string& text, int* value)
+{
+  double number = 0.0;
+  if (!wholeNumber(text, &number) || number != std::floor(number) || std::fabs(number) > 1e9)
+    return false;
+  *value = static_cast<int>(number);
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv)
@@ -145,7 +163,16 @@ int main(int argc, char** argv)
     else if (arg == "--save-preprocessed" && has_value)
       save_folder = argv[++i];
     else if (arg == "--true-width" && has_value)
-      true_width = std::atof(argv[++i]);
+    {
+      const std::string text = argv[++i];
+      if (!wholeNumber(text, &true_width) || !(true_width > 0.0))
+      {
+        std::cerr << "homing_pairs: --true-width takes the width in px of the images the true shifts are measured "
+                     "on (> 0), got '"
+                  << text << "'\n";
+        return 2;
+      }
+    }
     else if (arg == "--homing" && has_value)
     {
       const std::string spec = argv[++i];
@@ -158,16 +185,16 @@ int main(int argc, char** argv)
       std::getline(fields, fit, ':');
       std::getline(fields, robust, ':');
       std::getline(fields, rest);
-      if (shift.empty() || vertical.empty() || share.empty() ||
+      if (!wholeInteger(shift, &params.max_shift_px) || !wholeInteger(vertical, &params.max_vertical_shift_px) ||
+          !wholeNumber(share, &params.kept_column_share) ||
           (!fit.empty() && fit != "parabola" && fit != "equiangular") || (!robust.empty() && robust != "robust") ||
           !rest.empty())
       {
-        std::cerr << "homing_pairs: --homing takes M:V:S[:parabola|equiangular[:robust]], got " << spec << "\n";
+        std::cerr << "homing_pairs: --homing takes M:V:S[:parabola|equiangular[:robust]] (M and V integers, S a "
+                     "number), got "
+                  << spec << "\n";
         return 2;
       }
-      params.max_shift_px = std::atoi(shift.c_str());
-      params.max_vertical_shift_px = std::atoi(vertical.c_str());
-      params.kept_column_share = std::atof(share.c_str());
       if (!fit.empty())
         params.subpixel_fit = fit == "parabola" ? alr::SubpixelFit::kParabola : alr::SubpixelFit::kEquiangular;
       params.robust_column_cost = robust == "robust";
@@ -193,8 +220,9 @@ int main(int argc, char** argv)
       return 2;
     }
   }
-  if (pairs_path.empty() || !(true_width > 0.0))
+  if (pairs_path.empty())
   {
+    std::cerr << "homing_pairs: --pairs is required\n";
     usage(std::cerr);
     return 2;
   }

@@ -202,6 +202,12 @@ class FiguresTest(unittest.TestCase):
                 self.assertEqual(raised.exception.code, 2, args)
                 self.assertIn(words, err.getvalue())
 
+    def test_an_output_folder_that_cannot_be_made_is_said_before_anything_starts(self):
+        with self.assertRaises(SystemExit) as raised:  # a FileNotFoundError traceback before
+            closed_loop.main(["--output", "/proc/along_route_x", "--seeds", "1"])
+        self.assertEqual(str(raised.exception.code),
+                         "run_closed_loop: --output /proc/along_route_x cannot be made: No such file or directory")
+
     def test_occlusion(self):
         self.assertEqual(closed_loop.parse_occlusion("40:10"), (40.0, 10.0))
         self.assertEqual(closed_loop.parse_args(["--occlusion", "0:2.5"]).occlusion, (0.0, 2.5))

@@ -5,6 +5,7 @@ import contextlib
 import csv
 import io
 import os
+import subprocess
 import sys
 import tempfile
 import unittest
@@ -146,6 +147,27 @@ class OutputTest(unittest.TestCase):
                     evaluate_homing.main(argv + ["--tool", "/bin/true"])
                 self.assertEqual(raised.exception.code, 2, argv)
                 self.assertIn(words, err.getvalue())
+
+
+class HomingPairsArgumentsTest(unittest.TestCase):
+    def test_numbers_are_read_whole_or_refused_by_name(self):
+        # atoi / atof took 'abc' as 0 (a column of zeros, exit 0) and '12abc' as 12; --true-width 0 printed the
+        # usage without a reason. Arguments are read before the pairs file, so none is needed here.
+        tool = built_executable("homing_pairs")
+        if tool is None:
+            self.skipTest("needs the built homing_pairs (source devel/setup.bash)")
+        for argv, words in ((["--homing", "abc:0:0.5"], "--homing takes M:V:S[:parabola|equiangular[:robust]] (M and V "
+                             "integers, S a number), got abc:0:0.5"),
+                            (["--homing", "16:2.5:1"], "got 16:2.5:1"),
+                            (["--homing", "16:2:x"], "got 16:2:x"),
+                            (["--true-width", "12abc"], "--true-width takes the width in px of the images the true "
+                             "shifts are measured on (> 0), got '12abc'"),
+                            (["--true-width", "0"], "got '0'"),
+                            (["--true-width", "nan"], "got 'nan'")):
+            done = subprocess.run([tool, "--pairs", "/nonexistent/pairs.csv"] + argv, stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, universal_newlines=True, timeout=30)
+            self.assertEqual(done.returncode, 2, argv)
+            self.assertIn(words, done.stderr)
 
 
 class RealPairsTest(unittest.TestCase):

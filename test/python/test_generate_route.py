@@ -252,6 +252,7 @@ class CommandLineTest(unittest.TestCase):
     def test_bad_arguments(self):
         with contextlib.redirect_stderr(io.StringIO()):
             for args in (["--output", self.tmp, "--width", "10"], ["--output", self.tmp, "--hfov-deg", "200"],
+                         ["--output", self.tmp, "--width", "100000", "--height", "100000"],  # 33 GiB, a MemoryError
                          ["--output", self.tmp, "--rate", "0"], []):
                 with self.assertRaises(SystemExit) as caught:
                     generate_route.main(args)

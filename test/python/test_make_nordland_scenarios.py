@@ -318,7 +318,8 @@ class WriteTest(unittest.TestCase):
         for option, value, words in (("--seed", "-1", "--seed must be >= 0"),
                                      ("--dark-mean", "nan", "--dark-mean must be a gray level in [0, 255], got nan"),
                                      ("--dark-std", "nan", "--dark-std must be a gray level in [0, 255], got nan"),
-                                     ("--dark-mean", "-3", "--dark-mean must be a gray level")):
+                                     ("--dark-mean", "-3", "--dark-mean must be a gray level"),
+                                     ("--rate", "inf", "--rate must be > 0 and finite")):  # a traceback, bags half made
             code, err = self.run_main(["--output", self.out, "--data", self.data, option, value])
             self.assertEqual(code, 2, option + " " + value)
             self.assertIn(words, err)

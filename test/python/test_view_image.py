@@ -1,6 +1,9 @@
 """scripts/view_image (the viewer demo.launch view:=true starts): sensor_msgs/Image decoding, by hand-made
 messages with padded rows."""
 
+import contextlib
+import ctypes.util
+import io
 import os
 import sys
 import types
@@ -49,6 +52,19 @@ class DecodeTest(unittest.TestCase):
             self.assertEqual(view_image.main([]), 1)
         finally:
             os.environ.update(saved)
+
+    @unittest.skipUnless(ctypes.util.find_library('X11'), 'needs libX11 to ask the display')
+    def test_a_display_that_cannot_be_opened_is_said_not_an_abort(self):
+        saved = {k: os.environ.pop(k) for k in ('DISPLAY', 'WAYLAND_DISPLAY') if k in os.environ}
+        os.environ['DISPLAY'] = ':97'  # no X server there (a stale ssh -X display)
+        err = io.StringIO()
+        try:
+            with contextlib.redirect_stderr(err):
+                self.assertEqual(view_image.main([]), 1)
+        finally:
+            del os.environ['DISPLAY']
+            os.environ.update(saved)
+        self.assertIn('cannot open display :97', err.getvalue())
 
 
 if __name__ == '__main__':
