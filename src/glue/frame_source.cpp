@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <mutex>
@@ -55,6 +56,25 @@ PixelFormat formatOfDecoded(const cv::Mat& image, const std::string& file)
   }
 }
 
+/// Each frame is resized to the output, so frames of several sizes localize; but one camera's frames have one
+/// size, and two sizes are most likely two cameras' (or a folder of other images) mixed: said once, as a
+/// warning. name(i): how frame i is named in it.
+void warnOfOtherSizes(const std::vector<cv::Size>& sizes, const std::function<std::string(size_t)>& name,
+                      const std::string& noun)
+{
+  if (sizes.empty())
+    return;
+  size_t other = 0, first_other = 0;
+  for (size_t i = 1; i < sizes.size(); ++i)
+    if (sizes[i] != sizes[0] && other++ == 0)
+      first_other = i;
+  if (other > 0)
+    std::cerr << "warning: " << other << " of the " << sizes.size() << " " << noun << " are not the size of the first ("
+              << name(0) << ", " << sizes[0].width << "x" << sizes[0].height << "), e.g. " << name(first_other) << ", "
+              << sizes[first_other].width << "x" << sizes[first_other].height
+              << ": each is resized to the output, but one camera's frames have one size (two cameras mixed?)\n";
+}
+
 /// Reads and preprocesses files in parallel, one Preprocessor per worker.
 std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, const PreprocessingParams& params,
                                      const LoadProgress& progress)
@@ -64,6 +84,7 @@ std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, cons
   std::vector<cv::Mat> frames(files.size());
   std::vector<std::string> errors(files.size());
   std::vector<cv::Size> enlarged(files.size());  // the size of an image smaller than the output, else empty
+  std::vector<cv::Size> sizes(files.size());
   cv::parallel_for_(cv::Range(0, static_cast<int>(files.size())), [&](const cv::Range& range) {
     Preprocessor preprocessor(params);
     for (int i = range.start; i < range.end; ++i)
@@ -74,6 +95,7 @@ std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, cons
         errors[i] = "cannot read image '" + files[i] + "'";
         continue;
       }
+      sizes[i] = image.size();
       if (inputSmallerThanOutput(image.cols, image.rows, params, nullptr))
         enlarged[i] = image.size();
       try
@@ -94,6 +116,7 @@ std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, cons
   for (const std::string& error : errors)
     if (!error.empty())
       throw std::runtime_error(error);
+  warnOfOtherSizes(sizes, [&](size_t i) { return "'" + files[i] + "'"; }, "images");
   const auto first = std::find_if(enlarged.begin(), enlarged.end(), [](const cv::Size& size) { return !size.empty(); });
   if (first != enlarged.end())
   {
@@ -197,6 +220,7 @@ std::vector<cv::Mat> preprocessBag(rosbag::Bag& bag, const std::string& path, co
     throw std::runtime_error("bag '" + path + "' has no messages on topic '" + image_topic + "'");
   Preprocessor preprocessor(params);
   std::vector<cv::Mat> frames;
+  std::vector<cv::Size> sizes;
   size_t clipped_frames = 0, enlarged_frames = 0;
   // rosbag's words for a damaged message ("Buffer Overrun", "Unknown connection ID: 255") name neither the
   // file nor the message: said here with both.
@@ -236,6 +260,7 @@ std::vector<cv::Mat> preprocessBag(rosbag::Bag& bag, const std::string& path, co
         if (inputSmallerThanOutput(image->image.cols, image->image.rows, params, &warning) && enlarged_frames++ == 0)
           std::cerr << "warning: " << where() << ": a " << msg->width << "x" << msg->height << " image " << warning
                     << "; the bag's other such frames are counted, not named\n";
+        sizes.push_back(image->image.size());
         frames.emplace_back();
         preprocessor.process(image->image, format, frames.back());
       }
@@ -253,6 +278,8 @@ std::vector<cv::Mat> preprocessBag(rosbag::Bag& bag, const std::string& path, co
   {
     throw damaged(frames.size(), e);
   }
+  warnOfOtherSizes(sizes, [&](size_t i) { return "message " + std::to_string(i); },
+                   "frames of '" + path + "', topic '" + image_topic + "',");
   if (clipped_frames > 1)
     std::cerr << "warning: '" << path << "', topic '" << image_topic << "': " << clipped_frames << " of "
               << frames.size() << " 32FC1 frames had values outside [0, 1], clipped\n";

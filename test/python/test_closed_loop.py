@@ -195,7 +195,10 @@ class FiguresTest(unittest.TestCase):
             for args, words in ((["--route-length-m", "nan"], "--route-length-m must be in [20, 1000], not nan"),
                                 (["--route-length-m", "5000"], "--route-length-m must be in [20, 1000]"),
                                 (["--seeds", "-3"], "--seeds must be >= 0"),
-                                (["--output", afile.name], "is a file, not a folder")):
+                                (["--output", afile.name], "is a file, not a folder"),
+                                (["--follow-command", ""], "--follow-command '': no program given"),
+                                (["--follow-command", "roslaunchh x follow.launch"],
+                                 "roslaunchh is not a program on PATH")):
                 err = io.StringIO()
                 with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:
                     closed_loop.parse_args(args)

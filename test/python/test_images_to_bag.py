@@ -198,6 +198,21 @@ class BagTest(unittest.TestCase):
                 self.assertEqual(images_to_bag.main([self.folder, bag_path, "--topic", topic]), 0, topic)
             self.assertEqual(set(t for t, _, _ in self.read(bag_path)), {topic})
 
+    def test_a_shift_beyond_the_width_and_an_output_folder_are_refused_before_writing(self):
+        # --shift-px 100000 wrote a bag of one edge column replicated; a folder as the output was written in
+        # full, then refused by the rename.
+        outputs = os.path.join(self.tmp, "out")
+        os.makedirs(outputs)
+        for argv, words in (([self.folder, os.path.join(outputs, "x.bag"), "--shift-px", "-6"],
+                             "a shift of -6 px leaves nothing of the 6 px wide"),
+                            ([self.folder, outputs], "the output %s is a folder; name the bag file to write" % outputs)):
+            with contextlib.redirect_stderr(io.StringIO()) as err:
+                self.assertEqual(images_to_bag.main(argv), 2, argv)
+            self.assertIn(words, err.getvalue())
+        self.assertEqual(os.listdir(outputs), [])
+        with contextlib.redirect_stderr(io.StringIO()):  # 5 of the 6 columns replicated: still an image
+            self.assertEqual(images_to_bag.main([self.folder, os.path.join(self.tmp, "y.bag"), "--shift-px", "5"]), 0)
+
     def test_images_of_different_sizes_are_refused(self):
         self.cv2.imwrite(os.path.join(self.folder, "z.png"), np.zeros((5, 6, 3), np.uint8))
         with contextlib.redirect_stderr(io.StringIO()):

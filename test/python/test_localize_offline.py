@@ -321,6 +321,11 @@ class LocalizeOfflineTest(unittest.TestCase):
         result = self.run_warned_at_message_1('dots.bag', [full, dot, dot])
         self.assertIn('a 1x1 image smaller than the 64x32 output: enlarged', result.stderr)
         self.assertIn('2 of 3 frames were smaller than the output, enlarged', result.stderr)
+        # Two sizes in one query: said once, with the count (one camera's frames have one size).
+        self.assertEqual(result.stderr.count('are not the size of the first'), 1, result.stderr)
+        self.assertIn("warning: 2 of the 3 frames of '", result.stderr)
+        self.assertIn("are not the size of the first (message 0, 64x32), e.g. message 1, 1x1: each is resized to the "
+                      "output, but one camera's frames have one size (two cameras mixed?)", result.stderr)
         ramp = np.tile(np.arange(0, 256, 4, dtype=np.uint8), (32, 1))
         folder = self.folder('small', [ramp, ramp, cv2.resize(ramp, (32, 16)), ramp])
         result = self.run_runner('--map', self.map_dir, '--query', folder, '--output', os.path.join(self.tmp, 's.csv'))
@@ -328,8 +333,11 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertIn("'%s' is a 32x16 image smaller than the 64x32 output" % os.path.join(folder, '00002.png'),
                       result.stderr)
         self.assertIn('smaller than the output: 1 of the 4 images', result.stderr)
-        # The map's own 128 x 96 images are not.
+        self.assertIn("warning: 1 of the 4 images are not the size of the first ('%s', 64x32), e.g. '%s', 32x16"
+                      % (os.path.join(folder, '00000.png'), os.path.join(folder, '00002.png')), result.stderr)
+        # The map's own 128 x 96 images are not, and have one size.
         self.assertNotIn(self.map_dir, result.stderr)
+        self.assertEqual(result.stderr.count('are not the size of the first'), 1, result.stderr)
 
     def test_a_cut_short_or_foreign_file_is_named_for_what_it_is(self):
         good = self.image('mono8', 64, 32, bytes(range(256)) * 8, 64)
