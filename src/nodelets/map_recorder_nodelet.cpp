@@ -570,8 +570,8 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
     stat.summary(DiagnosticStatus::OK, "idle: call ~start to record");
   else if (state == State::kPaused)
     stat.summary(DiagnosticStatus::OK, "paused after " + keyframes);
-  else if (refused_.newestDropped() && refused_.lastKind() != kWriterFailed)  // (a writer failure: said above
-                                                                             // while it lasts, over once it is)
+  // Frames refused for a writer failure: said by the branch above while it lasts, not news once it is over.
+  else if (refused_.newestDropped() && refused_.lastKind() != kWriterFailed)
     stat.summary(refused_.lastKind() == kNoParameters ? DiagnosticStatus::WARN : DiagnosticStatus::ERROR,
                  "not recording the frames: " + refused_.lastReason());
   else if (frames_seen_ == 0)
