@@ -22,7 +22,7 @@ import route_fixture as fx
 
 FRAMES = 30
 BEFORE, REFUSED = 10, 5  # frames recorded before the limit; frames sent while the recorder refuses them
-MANAGER = '/full/teach_manager'
+MANAGER = '/full/full_manager'
 RECORDER = 'full/map_recorder: recording'
 
 
