@@ -45,26 +45,11 @@ echo "$summary"
 echo "python: ran $py_ran, failed $py_failed, skipped $py_skipped"
 if [ "$py_status" -ne 0 ]; then tail -n 40 "$py_log"; fi
 
-# catkin_test_results counts each gtest twice (the gtest XML and rosunit's wrapper): count once, from the
-# XML files written by the test programs themselves.
-read -r c_tests c_fail c_skip < <(/usr/bin/python3 - "$workspace/build/test_results" <<'PY'
-import sys, glob, xml.etree.ElementTree as ET
-tests = fail = skip = 0
-for path in glob.glob(sys.argv[1] + '/**/*.xml', recursive=True):
-    if '/MISSING-' in path or path.endswith('rosunit-') or 'rosunit-' in path.rsplit('/', 1)[-1]:
-        continue
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError:
-        fail += 1
-        continue
-    suites = [root] if root.tag == 'testsuite' else root.findall('testsuite')
-    for s in suites:
-        tests += int(s.get('tests', 0)); fail += int(s.get('failures', 0)) + int(s.get('errors', 0))
-        skip += int(s.get('skipped', 0) or s.get('disabled', 0) or 0)
-print(tests, fail, skip)
-PY
-)
+# Each test once, from the XML files the test programs wrote (script_support.count_test_results): a rostest's
+# own cases, not the wrapper catkin_test_results counts, whose one case passes even when the test node failed.
+read -r c_tests c_fail c_skip < <(PYTHONPATH="$here/src" /usr/bin/python3 -c \
+  'import sys; from along_route_localization.script_support import count_test_results as c; print(*c(sys.argv[1]))' \
+  "$workspace/build/test_results" || echo "0 1 0")
 total=$((c_tests + py_ran))
 failed=$((c_fail + py_failed))
 skipped=$((c_skip + py_skipped))

@@ -67,6 +67,35 @@ def output_input_clash(outputs, inputs):
     return None
 
 
+def count_test_results(folder):
+    """(tests, failed, skipped) of the JUnit XML files catkin's run_tests wrote under `folder`, each test once:
+    a gtest's own file (gtest-*.xml), a rostest's test node's (rosunit-*.xml), the launch checks'. A rostest's
+    wrapper (rostest-*.xml) holds one case that passes whenever its launch ran, so only a failure there counts
+    (the test node never reported); a file catkin names MISSING-* or one that does not parse is a failure."""
+    import glob
+    import xml.etree.ElementTree as ET
+    tests = failed = skipped = 0
+    for path in sorted(glob.glob(os.path.join(folder, "**", "*.xml"), recursive=True)):
+        name = os.path.basename(path)
+        if name.startswith("MISSING-"):
+            tests, failed = tests + 1, failed + 1
+            continue
+        try:
+            root = ET.parse(path).getroot()
+        except ET.ParseError:
+            tests, failed = tests + 1, failed + 1
+            continue
+        for suite in [root] if root.tag == "testsuite" else root.findall("testsuite"):
+            bad = int(suite.get("failures", 0)) + int(suite.get("errors", 0))
+            if name.startswith("rostest-"):
+                tests, failed = tests + bad, failed + bad
+                continue
+            tests += max(int(suite.get("tests", 0)), bad)
+            failed += bad
+            skipped += int(suite.get("skipped", 0) or suite.get("disabled", 0) or 0)
+    return tests, failed, skipped
+
+
 TOPIC_NAME = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
 
 

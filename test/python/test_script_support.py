@@ -12,6 +12,32 @@ sys.path.append(os.path.join(REPOSITORY, "src"))  # without a sourced workspace:
 from along_route_localization import script_support  # noqa: E402
 
 
+class TestResultsTest(unittest.TestCase):
+    def test_each_test_counts_once_and_a_rostest_whose_node_failed_counts_as_failed(self):
+        # What catkin run_tests wrote when teach_full_disk's setUpClass failed: the wrapper passed (1 case, ok),
+        # the test node's own file had 0 tests and 1 error; the summary said "0 failed".
+        files = {
+            "gtest-test_core.xml": '<testsuites tests="5" failures="1" errors="0" disabled="1">'
+                                   '<testsuite name="A" tests="3" failures="1" errors="0" disabled="1"/>'
+                                   '<testsuite name="B" tests="2" failures="0" errors="0"/></testsuites>',
+            "rostest-test_rostest_teach_full_disk.xml": '<testsuite tests="1" failures="0" errors="0"/>',
+            "rosunit-teach_full_disk.xml": '<testsuite tests="0" failures="0" errors="1"/>',
+            "rostest-test_rostest_teach.xml": '<testsuite tests="1" failures="0" errors="0"/>',
+            "rosunit-teach.xml": '<testsuite tests="6" failures="0" errors="0" skipped="2"/>',
+            "rostest-test_rostest_crashed.xml": '<testsuite tests="1" failures="1" errors="0"/>',
+            "MISSING-rosunit-crashed.xml": "",
+            "broken.xml": "<testsuite tests=",
+        }
+        with tempfile.TemporaryDirectory() as tmp:
+            os.makedirs(os.path.join(tmp, "along_route_localization"))
+            for name, text in files.items():
+                with open(os.path.join(tmp, "along_route_localization", name), "w") as f:
+                    f.write(text)
+            # tests: 3 + 2 (gtest suites) + 1 (the node's error) + 6 + 1 (the crashed wrapper) + 1 + 1
+            # failed: 1 + 1 + 1 + 1 (MISSING) + 1 (does not parse); skipped: 1 (disabled) + 2
+            self.assertEqual(script_support.count_test_results(tmp), (15, 5, 3))
+
+
 class SeasonTest(unittest.TestCase):
     def test_each_season_gives_the_other(self):
         self.assertEqual(script_support.other_season("summer"), "winter")
