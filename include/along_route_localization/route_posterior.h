@@ -10,7 +10,8 @@
 namespace along_route_localization
 {
 
-/// The model's four numbers (LocalizerParams::posterior; chosen by cross-validation, doc/results.md).
+/// The model's four numbers (LocalizerParams::posterior): the middle of the plateau the folds chose by
+/// cross-validation, picked on all six folds (doc/results.md, "The confidence as a posterior over the route").
 struct PosteriorParams
 {
   /// The likelihood of a keyframe given one frame: exp(-(c - c_min) / cost_scale), c being the frame's

@@ -88,6 +88,26 @@ class CalibrationTest(unittest.TestCase):
         self.assertAlmostEqual(figures["within_one"], 0.25)
         self.assertAlmostEqual(figures["within_one_observable"], 0.5)
 
+    def test_the_threshold_a_robot_could_ship_is_set_on_the_other_folds(self):
+        # Folds 0 and 1 train, fold 2 is held out; one scenario, one run each, calibration off (slope 0).
+        # Wrong answers on the training folds: 0.6 (fold 0) and 0.7 (fold 1, answered); fold 1's 0.95 is not
+        # answered and fold 0's 0.9 is lost (published 0): neither counts. Threshold 0.7.
+        def figures(confidence, correct, lost, answered):
+            return {"aligned": {"_confidence": [np.array(confidence)], "_correct": [np.array(correct)],
+                                "_lost": [np.array(lost)], "_answered": [np.array(answered)]}}
+        table = {"a": {0: figures([0.8, 0.6, 0.9], [True, False, False], [False, False, True], [True] * 3),
+                       1: figures([0.7, 0.95, 0.99], [False, False, True], [False] * 3, [True, False, True]),
+                       # held out: 0.75 and 0.9 right and accepted, 0.72 wrong and accepted, 0.7 right but not
+                       # above the threshold, one query unanswered
+                       2: figures([0.75, 0.9, 0.72, 0.7, 0.99], [True, True, False, True, True], [False] * 5,
+                                  [True, True, True, True, False])}}
+        shipped, threshold = cross_validate.threshold_figures(table, "a", [0, 1, 2], 2, 0.0, 0.0)
+        self.assertAlmostEqual(threshold, 0.7)
+        self.assertAlmostEqual(shipped["aligned"][0], 2 / 5)
+        self.assertEqual(shipped["aligned"][1], 1)
+        # No wrong answer to train on: every answer is accepted.
+        self.assertEqual(cross_validate.threshold_without_wrong([0.5], [True], [True]), -1.0)
+
     def test_lost_answers_publish_zero(self):
         p = cross_validate.calibrated([0.0, 0.5], [False, True], -1.0, 4.0)
         self.assertAlmostEqual(p[0], 1.0 / (1.0 + np.exp(1.0)))
