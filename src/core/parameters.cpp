@@ -749,6 +749,12 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
   int number = 0;
   bool in_section = false, skipped_section = false;
   size_t section_indent = std::string::npos;  // of the open section's entries, once its first one is read
+  std::set<std::string> sections_seen;
+  int first_flat_line = 0;  // of an entry at the start of a line (a flat file's form)
+  const auto flatAmongSections = [](const std::string& name) {
+    return "'" + name + "' is at the start of a line in a file with sections: YAML (the launch files) reads it as " +
+           "no section's, which no nodelet reads; indent it under its section (or give no section at all)";
+  };
   const auto fail = [&](const std::string& why) {
     entries->clear();
     *error = path + ":" + std::to_string(number) + ": " + why;
@@ -757,6 +763,8 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
   while (std::getline(in, line))
   {
     ++number;
+    if (number == 1 && line.compare(0, 3, "\xEF\xBB\xBF") == 0)
+      line.erase(0, 3);  // a UTF-8 byte-order mark (some editors write one): YAML skips it too
     const std::string content = trim(line.substr(0, line.find('#')));
     if (content.empty())
       continue;
@@ -779,15 +787,27 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
       if (indented || !kSections.count(name))
         return fail("'" + name + ":' has no value and is not a section the launch files read (" +
                     "preprocessor:, localizer:, map_recorder:, route_follower:, each at the start of a line)");
+      if (!sections_seen.insert(name).second)
+        return fail("'" + name + ":' appears a second time (YAML keeps only the last one): give each section once");
+      if (first_flat_line != 0)
+      {
+        number = first_flat_line;
+        return fail(flatAmongSections(entries->front().name));
+      }
       in_section = true;
       section_indent = std::string::npos;
       skipped_section = name == "map_recorder" || name == "route_follower";
       continue;
     }
+    if (!indented && !sections_seen.empty())
+      return fail(flatAmongSections(name));
+    if (!indented && first_flat_line == 0)
+      first_flat_line = number;
+    if (indented && !in_section)
+      return fail("'" + name + "' is indented but under no section: indent entries only under preprocessor:, "
+                  "localizer:, map_recorder: or route_follower:");
     if (!indented)
-      in_section = skipped_section = false;
-    else if (!in_section)
-      return fail("'" + name + "' is indented but under no section (YAML refuses that)");
+      ;  // a flat file's entry (no section anywhere): localize_offline's own form
     else if (section_indent == std::string::npos)
       section_indent = indent;
     else if (indent != section_indent)

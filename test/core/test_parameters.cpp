@@ -85,15 +85,15 @@ TEST(ParameterFileRead, AFolderIsRefusedAsUnreadable)
 
 TEST_F(ParameterFile, ANameGivenTwiceIsAnErrorNamingBothLines)
 {
-  const std::string error = load("max_step: 3\n# comment\nlocalizer:\n  max_step: 4\n");
-  EXPECT_NE(std::string::npos, error.find(path_ + ":4:")) << error;
+  const std::string error = load("max_step: 3\n# comment\nmax_step: 4\n");
+  EXPECT_NE(std::string::npos, error.find(path_ + ":3:")) << error;
   EXPECT_NE(std::string::npos, error.find("'max_step' is already set on line 1")) << error;
   // Once each, in different sections, loads.
   EXPECT_EQ("", load("preprocessor:\n  sky_fraction: 0.25\nlocalizer:\n  max_step: 3\n"));
   EXPECT_EQ(3, localizer_.dtw.max_step);
   EXPECT_DOUBLE_EQ(0.25, preprocessing_.sky_fraction);
   // The recorder's section is skipped, so its names do not count.
-  EXPECT_EQ("", load("map_recorder:\n  every_nth: 3\n  every_nth: 4\nmax_step: 2\n"));
+  EXPECT_EQ("", load("map_recorder:\n  every_nth: 3\n  every_nth: 4\nlocalizer:\n  max_step: 2\n"));
   // So is the route follower's (follow.launch's params_file), and a section after it is read again.
   EXPECT_EQ("", load("route_follower:\n  homing_gain: 3.0\n  homing_gain: 2.0\nlocalizer:\n  max_step: 4\n"));
   EXPECT_EQ(4, localizer_.dtw.max_step);
@@ -105,7 +105,7 @@ TEST_F(ParameterFile, EntriesAreReadWithTheirLinesAndAppliedLater)
 {
   // The launch files' params_file as it is: sections, comments, the recorder's section skipped.
   std::ofstream(path_) << "# tuned on the yard\npreprocessor:\n  sky_fraction: 0.25  # trees\nmap_recorder:\n"
-                          "  every_nth: 3\nlocalizer:\n  max_step: 3\nbogus_name: 1\n";
+                          "  every_nth: 3\nlocalizer:\n  max_step: 3\n  bogus_name: 1\n";
   std::vector<arl::ParameterEntry> entries;
   std::string error;
   ASSERT_TRUE(arl::readParameterFile(path_, &entries, &error)) << error;
@@ -150,12 +150,29 @@ TEST_F(ParameterFile, WhatTheLaunchFilesYamlWouldReadOtherwiseIsAnErrorNamingThe
   // Indentation YAML refuses: rosparam (and so roslaunch) refuses the file.
   EXPECT_EQ(path_ + ":3: 'max_step' is indented by 3 spaces, the entries above it by 2 (YAML refuses that)",
             load("localizer:\n  ring_buffer_rows: 10\n   max_step: 3\n"));
-  EXPECT_EQ(path_ + ":1: 'max_step' is indented but under no section (YAML refuses that)", load("  max_step: 3\n"));
+  EXPECT_EQ(path_ + ":1: 'max_step' is indented but under no section: indent entries only under preprocessor:, "
+                    "localizer:, map_recorder: or route_follower:",
+            load("  max_step: 3\n"));
+  // An entry at the start of a line beside sections: YAML puts it under no section (no nodelet reads it),
+  // before a section or after one; and a section given twice, of which YAML keeps the last.
+  const std::string flat = "' is at the start of a line in a file with sections: YAML (the launch files) reads it "
+                           "as no section's, which no nodelet reads; indent it under its section (or give no "
+                           "section at all)";
+  EXPECT_EQ(path_ + ":3: 'ring_buffer_rows" + flat, load("localizer:\n  max_step: 3\nring_buffer_rows: 12\n"));
+  EXPECT_EQ(path_ + ":2: 'ring_buffer_rows" + flat, load("# tuned\nring_buffer_rows: 12\nlocalizer:\n  max_step: 3\n"));
+  EXPECT_EQ(path_ + ":3: 'localizer:' appears a second time (YAML keeps only the last one): give each section once",
+            load("localizer:\n  max_step: 3\nlocalizer:\n  ring_buffer_rows: 12\n"));
+  // A byte-order mark before the first header, as some editors write: YAML skips it, and so does the reader.
+  EXPECT_EQ("", load("\xEF\xBB\xBFlocalizer:\n  max_step: 3\n"));
+  EXPECT_EQ(3, localizer_.dtw.max_step);
   EXPECT_EQ(path_ + ":2: a tab in the indentation (YAML, which the launch files read the file as, allows spaces only)",
             load("localizer:\n\tmax_step: 3\n"));
-  // Each section sets its own indentation; a flat file and a section after it read as before.
-  EXPECT_EQ("", load("preprocessor:\n    sky_fraction: 0.25\nlocalizer:\n  max_step: 3\nring_buffer_rows: 12\n"));
+  // Each section sets its own indentation; a flat file (no section anywhere) reads as before.
+  EXPECT_EQ("", load("preprocessor:\n    sky_fraction: 0.25\nlocalizer:\n  max_step: 3\n"));
   EXPECT_EQ(3, localizer_.dtw.max_step);
+  EXPECT_DOUBLE_EQ(0.25, preprocessing_.sky_fraction);
+  EXPECT_EQ("", load("max_step: 4\nring_buffer_rows: 12\n"));
+  EXPECT_EQ(4, localizer_.dtw.max_step);
   EXPECT_EQ(12, localizer_.ring_buffer_rows);
 }
 

@@ -196,14 +196,19 @@ class FiguresTest(unittest.TestCase):
                                 (["--route-length-m", "5000"], "--route-length-m must be in [20, 1000]"),
                                 (["--seeds", "-3"], "--seeds must be >= 0"),
                                 (["--output", afile.name], "is a file, not a folder"),
-                                (["--follow-command", ""], "--follow-command '': no program given"),
-                                (["--follow-command", "roslaunchh x follow.launch"],
-                                 "roslaunchh is not a program on PATH")):
+                                (["--follow-command", ""], "--follow-command '': no program given")):
                 err = io.StringIO()
                 with contextlib.redirect_stderr(err), self.assertRaises(SystemExit) as raised:
                     closed_loop.parse_args(args)
                 self.assertEqual(raised.exception.code, 2, args)
                 self.assertIn(words, err.getvalue())
+
+    def test_a_follow_command_that_is_no_program_is_said_before_the_teach(self):
+        import tempfile
+        with tempfile.TemporaryDirectory() as tmp, self.assertRaises(SystemExit) as raised:
+            closed_loop.main(["--output", tmp, "--seeds", "1", "--follow-command", "roslaunchh x follow.launch"])
+        self.assertEqual(str(raised.exception.code),
+                         "run_closed_loop: roslaunchh not found; source your workspace's devel/setup.bash")
 
     def test_an_output_folder_that_cannot_be_made_is_said_before_anything_starts(self):
         with self.assertRaises(SystemExit) as raised:  # a FileNotFoundError traceback before

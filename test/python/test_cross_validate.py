@@ -152,8 +152,8 @@ class SelectionTest(unittest.TestCase):
 
     @unittest.skipIf(built_executable("localize_offline") is None, "localize_offline not built (source the workspace)")
     def test_the_shipped_candidate_grids_name_parameters_in_range(self):
-        # doc/cv_core_parameters.txt, doc/cv_decision_parameters.txt, doc/cv_ablations.txt and
-        # doc/cv_posterior.txt, the grids
+        # doc/cv_core_parameters.txt, doc/cv_decision_parameters.txt, doc/cv_ablations.txt, doc/cv_posterior.txt
+        # and doc/cv_all_switches.txt (the first three's union and four rules' switches), the grids
         # doc/results.md reports:
         # every name one localize_offline takes, every value inside its range (a misspelt name or a value out
         # of range would be refused or corrected by the runs, and the figures would be those of another grid).
@@ -166,7 +166,8 @@ class SelectionTest(unittest.TestCase):
         self.assertIn("column_centering", switches)
         doc = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "doc")
         for file_name, count in (("cv_core_parameters.txt", 18), ("cv_decision_parameters.txt", 19),
-                                 ("cv_ablations.txt", 19), ("cv_posterior.txt", 26)):
+                                 ("cv_ablations.txt", 19), ("cv_posterior.txt", 26),
+                                 ("cv_all_switches.txt", 18 + 17 + 18 + 4 + 1)):
             with open(os.path.join(doc, file_name)) as f:
                 candidates = cross_validate.parse_candidates(f.read())
             self.assertEqual(len(candidates), count, file_name)
