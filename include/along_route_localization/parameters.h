@@ -18,6 +18,12 @@
 namespace along_route_localization
 {
 
+/// The whole of `text` as a number (std::stod; "12abc" is not 12, "nan" and "inf" are numbers). False when it
+/// is not.
+bool parseDouble(const std::string& text, double* value);
+/// The whole of `text` as an integer (parseDouble, a whole number within +-2e9). False when it is not.
+bool parseInt(const std::string& text, int* value);
+
 /// Whose parameter: the preprocessor's (stored in the map), the localizer's, the map recorder's or the
 /// route follower's.
 enum class ParameterGroup

@@ -14,9 +14,6 @@
 namespace along_route_localization
 {
 
-namespace
-{
-
 bool parseDouble(const std::string& text, double* value)
 {
   try
@@ -39,6 +36,9 @@ bool parseInt(const std::string& text, int* value)
   *value = static_cast<int>(d);
   return true;
 }
+
+namespace
+{
 
 bool parseBool(const std::string& text, bool* value)
 {

@@ -122,22 +122,10 @@ double phaseCorrelationShift(const cv::Mat& keyframe, const cv::Mat& query, cons
   return cv::phaseCorrelate(k, q, window).x;
 }
 
-/// The whole of `text` as a finite number (no trailing characters: "12abc" is not 12).
-bool wholeNumber(const std::string& text, double* value)
+/// The whole of `text` as a finite number (parseDouble takes "nan" and "inf" too).
+bool finiteNumber(const std::string& text, double* value)
 {
-  char* end = nullptr;
-  *value = std::strtod(text.c_str(), &end);
-  return !text.empty() && end == text.c_str() + text.size() && std::isfinite(*value);
-}
-
-/// The whole of `text` as an integer.
-bool wholeInteger(const std::string& text, int* value)
-{
-  double number = 0.0;
-  if (!wholeNumber(text, &number) || number != std::floor(number) || std::fabs(number) > 1e9)
-    return false;
-  *value = static_cast<int>(number);
-  return true;
+  return alr::parseDouble(text, value) && std::isfinite(*value);
 }
 
 }  // namespace
@@ -165,7 +153,7 @@ int main(int argc, char** argv)
     else if (arg == "--true-width" && has_value)
     {
       const std::string text = argv[++i];
-      if (!wholeNumber(text, &true_width) || !(true_width > 0.0))
+      if (!finiteNumber(text, &true_width) || !(true_width > 0.0))
       {
         std::cerr << "homing_pairs: --true-width takes the width in px of the images the true shifts are measured "
                      "on (> 0), got '"
@@ -185,8 +173,8 @@ int main(int argc, char** argv)
       std::getline(fields, fit, ':');
       std::getline(fields, robust, ':');
       std::getline(fields, rest);
-      if (!wholeInteger(shift, &params.max_shift_px) || !wholeInteger(vertical, &params.max_vertical_shift_px) ||
-          !wholeNumber(share, &params.kept_column_share) ||
+      if (!alr::parseInt(shift, &params.max_shift_px) || !alr::parseInt(vertical, &params.max_vertical_shift_px) ||
+          !finiteNumber(share, &params.kept_column_share) ||
           (!fit.empty() && fit != "parabola" && fit != "equiangular") || (!robust.empty() && robust != "robust") ||
           !rest.empty())
       {
