@@ -747,10 +747,11 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
   static const std::set<std::string> kSections = { "preprocessor", "localizer", "map_recorder", "route_follower" };
   std::string line;
   int number = 0;
-  bool in_section = false, skipped_section = false;
+  // Once a section has begun, entries at the start of a line are refused: the last section stays open to
+  // the end, and before the first one every entry is such a flat one.
+  bool skipped_section = false;
   size_t section_indent = std::string::npos;  // of the open section's entries, once its first one is read
   std::set<std::string> sections_seen;
-  int first_flat_line = 0;  // of an entry at the start of a line (a flat file's form)
   const auto flatAmongSections = [](const std::string& name) {
     return "'" + name + "' is at the start of a line in a file with sections: YAML (the launch files) reads it as " +
            "no section's, which no nodelet reads; indent it under its section (or give no section at all)";
@@ -787,27 +788,26 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
       if (indented || !kSections.count(name))
         return fail("'" + name + ":' has no value and is not a section the launch files read (" +
                     "preprocessor:, localizer:, map_recorder:, route_follower:, each at the start of a line)");
-      if (!sections_seen.insert(name).second)
-        return fail("'" + name + ":' appears a second time (YAML keeps only the last one): give each section once");
-      if (first_flat_line != 0)
+      if (sections_seen.empty() && !entries->empty())  // the first section, after flat entries
       {
-        number = first_flat_line;
+        number = entries->front().line;
         return fail(flatAmongSections(entries->front().name));
       }
-      in_section = true;
+      if (!sections_seen.insert(name).second)
+        return fail("'" + name + ":' appears a second time (YAML keeps only the last one): give each section once");
       section_indent = std::string::npos;
       skipped_section = name == "map_recorder" || name == "route_follower";
       continue;
     }
-    if (!indented && !sections_seen.empty())
-      return fail(flatAmongSections(name));
-    if (!indented && first_flat_line == 0)
-      first_flat_line = number;
-    if (indented && !in_section)
+    if (!indented)
+    {
+      if (!sections_seen.empty())
+        return fail(flatAmongSections(name));
+      // else a flat file's entry (no section so far): localize_offline's own form
+    }
+    else if (sections_seen.empty())
       return fail("'" + name + "' is indented but under no section: indent entries only under preprocessor:, "
                   "localizer:, map_recorder: or route_follower:");
-    if (!indented)
-      ;  // a flat file's entry (no section anywhere): localize_offline's own form
     else if (section_indent == std::string::npos)
       section_indent = indent;
     else if (indent != section_indent)
