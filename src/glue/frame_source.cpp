@@ -83,7 +83,6 @@ std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, cons
   size_t done = 0;  // files read, under progress_mutex
   std::vector<cv::Mat> frames(files.size());
   std::vector<std::string> errors(files.size());
-  std::vector<cv::Size> enlarged(files.size());  // the size of an image smaller than the output, else empty
   std::vector<cv::Size> sizes(files.size());
   cv::parallel_for_(cv::Range(0, static_cast<int>(files.size())), [&](const cv::Range& range) {
     Preprocessor preprocessor(params);
@@ -96,8 +95,6 @@ std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, cons
         continue;
       }
       sizes[i] = image.size();
-      if (inputSmallerThanOutput(image.cols, image.rows, params, nullptr))
-        enlarged[i] = image.size();
       try
       {
         preprocessor.process(image, formatOfDecoded(image, files[i]), frames[i]);
@@ -117,13 +114,16 @@ std::vector<cv::Mat> preprocessFiles(const std::vector<std::string>& files, cons
     if (!error.empty())
       throw std::runtime_error(error);
   warnOfOtherSizes(sizes, [&](size_t i) { return "'" + files[i] + "'"; }, "images");
-  const auto first = std::find_if(enlarged.begin(), enlarged.end(), [](const cv::Size& size) { return !size.empty(); });
-  if (first != enlarged.end())
+  const auto smaller = [&](const cv::Size& size) {
+    return inputSmallerThanOutput(size.width, size.height, params, nullptr);
+  };
+  const auto first = std::find_if(sizes.begin(), sizes.end(), smaller);
+  if (first != sizes.end())
   {
     std::string sentence;
     inputSmallerThanOutput(first->width, first->height, params, &sentence);
-    const auto count = std::count_if(first, enlarged.end(), [](const cv::Size& size) { return !size.empty(); });
-    std::cerr << "warning: '" << files[first - enlarged.begin()] << "' is a " << first->width << "x" << first->height
+    const auto count = std::count_if(first, sizes.end(), smaller);
+    std::cerr << "warning: '" << files[first - sizes.begin()] << "' is a " << first->width << "x" << first->height
               << " image " << sentence << "; smaller than the output: " << count << " of the " << files.size()
               << " images\n";
   }
