@@ -87,6 +87,18 @@ class CalibrationTest(unittest.TestCase):
         figures = cross_validate.figures_of(evaluate.evaluate(results, truth))
         self.assertAlmostEqual(figures["within_one"], 0.25)
         self.assertAlmostEqual(figures["within_one_observable"], 0.5)
+        self.assertIsNone(figures["within_one_reference"])  # no keyframe_stationary column
+
+    def test_the_reference_from_the_ground_truth_is_a_figure_of_the_fold(self):
+        # truth 0 1 2 2 2 2; the teach camera stood at keyframe 2 (queries 2-5 blind). From query 1 at speed 1:
+        # 2, 3, 4, 5 against 2, 2, 2, 2 -> queries 2 and 3 right: 4 of 6, whatever the answers were
+        truth = {q: {"keyframe": min(q, 2), "exact": None, "shift": None, "heading": None, "dark": False,
+                     "stationary": q >= 2, "keyframe_stationary": q >= 2} for q in range(6)}
+        results = {"query_index": list(range(6)), "keyframe": [9] * 6, "confidence": [0.5] * 6,
+                   "shift_px": [0.0] * 6, "homing_angle_rad": [0.0] * 6, "status": ["tracking"] * 6}
+        figures = cross_validate.figures_of(evaluate.evaluate(results, truth))
+        self.assertAlmostEqual(figures["within_one"], 0.0)
+        self.assertAlmostEqual(figures["within_one_reference"], 4 / 6)
 
     def test_the_threshold_a_robot_could_ship_is_set_on_the_other_folds(self):
         # Folds 0 and 1 train, fold 2 is held out; one scenario, one run each, calibration off (slope 0).

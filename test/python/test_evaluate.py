@@ -102,6 +102,24 @@ SIX_QUERIES = """query_index,keyframe,confidence,shift_px,homing_angle_rad,statu
 """
 
 
+class BlindReferenceTest(unittest.TestCase):
+    def test_a_blind_run_is_crossed_at_the_true_speed_before_it(self):
+        # truth 0 1 2 3 | 4 4 4 4 (blind) | 5 6; window 2: from query 3 (keyframe 3) at (3 - 1) / 2 = 1 a query:
+        # 4, 5, 6, 7 against 4, 4, 4, 4 -> errors 0, 1, 2, 3: two right. 6 seen + 2 = 8 of 10.
+        truth = [0, 1, 2, 3, 4, 4, 4, 4, 5, 6]
+        blind = [0, 0, 0, 0, 1, 1, 1, 1, 0, 0]
+        self.assertAlmostEqual(evaluate.blind_reference(truth, blind, window=2), 0.8)
+        # tolerance 0: only query 4 of the run
+        self.assertAlmostEqual(evaluate.blind_reference(truth, blind, window=2, tolerance=0), 0.7)
+        # a robot that stood before the run (keyframes 3 3 3): speed 0, the run answered 3: errors 1 1 1 1
+        self.assertAlmostEqual(evaluate.blind_reference([0, 3, 3, 3, 4, 4, 4, 4, 5, 6], blind, window=2), 1.0)
+
+    def test_a_run_that_opens_the_sequence_starts_at_one_keyframe_a_query(self):
+        # truth 5 5 5 6 (first three blind): reckoned 5, 6, 7 -> errors 0, 1, 2
+        self.assertAlmostEqual(evaluate.blind_reference([5, 5, 5, 6], [1, 1, 1, 0]), 3 / 4)
+        self.assertAlmostEqual(evaluate.blind_reference([3, 4, 5], [0, 0, 0]), 1.0)
+
+
 class EvaluateEndToEndTest(unittest.TestCase):
     """Six queries, identity truth, tolerance 1.
 
@@ -224,6 +242,23 @@ class EvaluateEndToEndTest(unittest.TestCase):
         self.assertAlmostEqual(nn["within"]["1"], 2 / 3)
         self.assertAlmostEqual(nn["recall_at_100_precision"], 2 / 3)
         self.assertIn("excluding dark and stationary (3 queries)", out)
+        # blind (dark or standing keyframe): queries 2 and 5. Query 2 from query 1 at the speed of queries 0-1
+        # (1 a query): 2, right; query 5 from query 4: 5, right. Every other query counts as right: 6 of 6.
+        self.assertEqual(m["blind_reference"]["blind_queries"], 2)
+        self.assertAlmostEqual(m["blind_reference"]["within_tolerance"], 1.0)
+
+    def test_the_blind_reference_reads_the_standing_keyframes(self):
+        # the teach camera stood at keyframe 3 for queries 3-5: dead-reckoned from query 2 at the true speed of
+        # queries 0-2 (1 a query): 3, 4, 5 against 3, 3, 3 -> two right; 5 of 6 (the run's answers do not matter)
+        gt = os.path.join(self.tmp, "gt.csv")
+        write(gt, "query_index,keyframe,query_stationary,keyframe_stationary\n"
+                  "0,0,0,0\n1,1,0,0\n2,2,0,0\n3,3,0,1\n4,3,0,1\n5,3,0,1\n")
+        m, out, _ = self.score([self.results, "-g", gt])
+        self.assertEqual(m["blind_reference"]["blind_queries"], 3)
+        self.assertAlmostEqual(m["blind_reference"]["within_tolerance"], 5 / 6)
+        self.assertIn("dead-reckoned at the true speed of the 10 before: within tolerance 0.833", out)
+        m, _, _ = self.score([self.results, "--identity"])
+        self.assertNotIn("blind_reference", m)
 
     def test_tolerance_zero(self):
         m, _, _ = self.score([self.results, "--identity", "--tolerance", "0"])
