@@ -28,17 +28,30 @@ std::vector<std::string> unreadParameters(const ros::NodeHandle& private_nh, con
   return unread;
 }
 
+std::string parameterValueText(const XmlRpc::XmlRpcValue& value)
+{
+  XmlRpc::XmlRpcValue& v = const_cast<XmlRpc::XmlRpcValue&>(value);  // XmlRpcValue's casts are not const
+  switch (value.getType())
+  {
+    case XmlRpc::XmlRpcValue::TypeString:
+      return "'" + static_cast<std::string>(v) + "'";
+    case XmlRpc::XmlRpcValue::TypeDouble:
+      return std::to_string(static_cast<double>(v));
+    case XmlRpc::XmlRpcValue::TypeInt:
+      return std::to_string(static_cast<int>(v));
+    case XmlRpc::XmlRpcValue::TypeBoolean:
+      return static_cast<bool>(v) ? "true" : "false";
+    default:
+      return v.toXml();  // a list, a dictionary, a date: rare enough to show as the server has it
+  }
+}
+
 std::string mistypedSentence(const std::string& name, const XmlRpc::XmlRpcValue& value, const std::string& type,
                              const std::string& kept)
 {
   const std::string wanted = type == "int" ? "an integer" : type == "double" ? "a number" :
                              type == "str" ? "a string" : "true or false";
-  std::string given = const_cast<XmlRpc::XmlRpcValue&>(value).toXml();
-  if (value.getType() == XmlRpc::XmlRpcValue::TypeString)
-    given = "'" + static_cast<std::string>(const_cast<XmlRpc::XmlRpcValue&>(value)) + "'";
-  else if (value.getType() == XmlRpc::XmlRpcValue::TypeDouble)
-    given = std::to_string(static_cast<double>(const_cast<XmlRpc::XmlRpcValue&>(value)));
-  return "~" + name + " = " + given + " is not " + wanted + "; refused, keeping " + kept;
+  return "~" + name + " = " + parameterValueText(value) + " is not " + wanted + "; refused, keeping " + kept;
 }
 
 std::string unreadSentence(const std::string& name, const std::string& who, const std::set<std::string>& read)
@@ -86,7 +99,7 @@ MotionType readMotionType(const ros::NodeHandle& private_nh, MotionType fallback
   const std::string using_fallback = "; using " + motionTypeName(fallback);
   if (value.getType() != XmlRpc::XmlRpcValue::TypeString)
   {
-    *problem = "~motion_type = " + value.toXml() + " is not a string" + using_fallback;
+    *problem = "~motion_type = " + parameterValueText(value) + " is not a string" + using_fallback;
     return fallback;
   }
   const std::string text = static_cast<std::string>(value);
@@ -124,10 +137,37 @@ bool readBoolParameter(const ros::NodeHandle& private_nh, const std::string& nam
     default:
       break;
   }
-  *problem = "~" + name + " = " + (value.getType() == XmlRpc::XmlRpcValue::TypeString ?
-                                       "'" + static_cast<std::string>(value) + "'" :
-                                       value.toXml()) +
-             " is not true or false; using " + (fallback ? "true" : "false");
+  *problem = "~" + name + " = " + parameterValueText(value) + " is not true or false; using " +
+             (fallback ? "true" : "false");
+  return fallback;
+}
+
+int readIntParameter(const ros::NodeHandle& private_nh, const std::string& name, int fallback, std::string* problem)
+{
+  problem->clear();
+  XmlRpc::XmlRpcValue value;
+  if (!private_nh.getParam(name, value))
+    return fallback;
+  if (value.getType() == XmlRpc::XmlRpcValue::TypeInt)
+    return static_cast<int>(value);
+  *problem = mistypedSentence(name, value, "int", std::to_string(fallback));
+  return fallback;
+}
+
+double readDoubleParameter(const ros::NodeHandle& private_nh, const std::string& name, double fallback,
+                           std::string* problem)
+{
+  problem->clear();
+  XmlRpc::XmlRpcValue value;
+  if (!private_nh.getParam(name, value))
+    return fallback;
+  if (value.getType() == XmlRpc::XmlRpcValue::TypeInt)
+    return static_cast<int>(value);
+  if (value.getType() == XmlRpc::XmlRpcValue::TypeDouble)
+    return static_cast<double>(value);
+  std::ostringstream kept;
+  kept << fallback;
+  *problem = mistypedSentence(name, value, "double", kept.str());
   return fallback;
 }
 

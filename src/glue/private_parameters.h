@@ -27,7 +27,11 @@ std::set<std::string> configParameterNames()
   return names;
 }
 
-/// "~name = value is not an integer: dynamic_reconfigure cannot read it and keeps default".
+/// A parameter's value as a log shows it: 'text' for a string, 2.500000, 3, true; XML for a list or a
+/// dictionary.
+std::string parameterValueText(const XmlRpc::XmlRpcValue& value);
+
+/// "~name = value is not an integer; refused, keeping default".
 std::string mistypedSentence(const std::string& name, const XmlRpc::XmlRpcValue& value, const std::string& type,
                              const std::string& kept);
 
@@ -118,6 +122,18 @@ MotionType readMotionType(const ros::NodeHandle& private_nh, MotionType fallback
 /// yes / no / on / off; anything else gives `fallback` and *problem the sentence for the log ("~autostart =
 /// 'maybe' is not true or false; using true"); else *problem is empty.
 bool readBoolParameter(const ros::NodeHandle& private_nh, const std::string& name, bool fallback, std::string* problem);
+
+/// A static integer parameter as set under private_nh; `fallback` when unset. Takes an integer only: a
+/// fraction (which ros::NodeHandle::param<int> reads rounded, 2.5 as 3, without a word), a string or a bool
+/// gives `fallback` and *problem the sentence for the log ("~queue_size = 2.500000 is not an integer;
+/// refused, keeping 100"); else *problem is empty. The range is the caller's to check.
+int readIntParameter(const ros::NodeHandle& private_nh, const std::string& name, int fallback, std::string* problem);
+
+/// A static number parameter as set under private_nh; `fallback` when unset. Takes an integer or a
+/// fraction; a string or a bool (which ros::NodeHandle::param<double> ignores without a word) gives
+/// `fallback` and *problem the sentence for the log; else *problem is empty.
+double readDoubleParameter(const ros::NodeHandle& private_nh, const std::string& name, double fallback,
+                           std::string* problem);
 
 }  // namespace along_route_localization
 

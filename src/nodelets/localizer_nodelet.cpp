@@ -280,14 +280,21 @@ void LocalizerNodelet::onInit()
   ros::NodeHandle& private_nh = getPrivateNodeHandle();
 
   warnAboutUnreadParameters(private_nh);
-  private_nh.param("debug_image_scale", debug_image_scale_, debug_image_scale_);
+  std::string problem;
+  debug_image_scale_ = readIntParameter(private_nh, "debug_image_scale", debug_image_scale_, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
   if (debug_image_scale_ < 1 || debug_image_scale_ > 64)
   {
     NODELET_ERROR("~debug_image_scale must be 1 to 64 (%d); using 8", debug_image_scale_);
     debug_image_scale_ = 8;
   }
-  private_nh.param("min_rate", min_rate_hz_, min_rate_hz_);
-  private_nh.param("max_rate", max_rate_hz_, max_rate_hz_);
+  min_rate_hz_ = readDoubleParameter(private_nh, "min_rate", min_rate_hz_, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
+  max_rate_hz_ = readDoubleParameter(private_nh, "max_rate", max_rate_hz_, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
   if (!(min_rate_hz_ >= 0.0 && max_rate_hz_ >= min_rate_hz_ && std::isfinite(max_rate_hz_)))
   {
     NODELET_ERROR("~min_rate and ~max_rate must satisfy 0 <= min_rate <= max_rate (%g, %g Hz); using 1 and 1000",
@@ -332,15 +339,15 @@ void LocalizerNodelet::onInit()
   diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
 
   localization_pub_ = nh.advertise<Localization>("localization", 10);
-  bool report_input_buffer = false;
-  private_nh.param("report_input_buffer", report_input_buffer, report_input_buffer);
+  const bool report_input_buffer = readBoolParameter(private_nh, "report_input_buffer", false, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
   if (report_input_buffer)
     input_buffer_pub_ = private_nh.advertise<std_msgs::String>("input_buffer", 100);
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
   debug_pub_ = it_->advertise("localization_debug_image", 1);
   // The same single-threaded queue as the images: the detector needs no lock. Before the images are
   // subscribed: imageCb reads motion_sub_, and callbacks may run while onInit goes on.
-  std::string problem;
   const MotionType motion_type = readMotionType(private_nh, MotionType::kNone, &problem);
   if (!problem.empty())
     NODELET_ERROR("%s: the images alone tell whether the robot stood still", problem.c_str());

@@ -185,26 +185,30 @@ void MapRecorderNodelet::onInit()
   for (const std::string& name : unreadParameters(private_nh, read))
     NODELET_WARN("%s", unreadSentence(name, "map recorder", read).c_str());
   private_nh.param("map", map_path_, std::string());
-  std::string autostart_problem;
-  const bool autostart = readBoolParameter(private_nh, "autostart", true, &autostart_problem);
-  if (!autostart_problem.empty())
-    NODELET_ERROR("%s", autostart_problem.c_str());
-  private_nh.param("flush_period", flush_period_s_, flush_period_s_);
+  std::string problem;
+  const bool autostart = readBoolParameter(private_nh, "autostart", true, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
+  flush_period_s_ = readDoubleParameter(private_nh, "flush_period", flush_period_s_, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
   if (!(flush_period_s_ > 0.0 && flush_period_s_ <= 3600.0))
   {
     NODELET_ERROR("~flush_period must be > 0 and <= 3600 s (%g); using 1.0", flush_period_s_);
     flush_period_s_ = 1.0;
   }
-  int max_queue = static_cast<int>(max_queue_);
-  private_nh.param("max_queue", max_queue, max_queue);
+  int max_queue = readIntParameter(private_nh, "max_queue", static_cast<int>(max_queue_), &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
   if (max_queue < 1)
   {
     NODELET_ERROR("~max_queue must be at least 1 (%d); using %zu", max_queue, max_queue_);
     max_queue = static_cast<int>(max_queue_);
   }
   max_queue_ = static_cast<size_t>(max_queue);
-  int queue_size = 100;
-  private_nh.param("queue_size", queue_size, queue_size);
+  int queue_size = readIntParameter(private_nh, "queue_size", 100, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
   if (queue_size < 1)
   {
     NODELET_ERROR("~queue_size must be at least 1 (%d); using 100", queue_size);
@@ -255,7 +259,6 @@ void MapRecorderNodelet::onInit()
   const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
   params_sub_ = nh.subscribe(params_topic, 1, &MapRecorderNodelet::paramsCb, this);
   odom_sub_ = nh.subscribe("odom", 10, &MapRecorderNodelet::odomCb, this);
-  std::string problem;
   const MotionType motion_type = readMotionType(private_nh, MotionType::kTwist, &problem);
   if (!problem.empty())
     NODELET_ERROR("%s", problem.c_str());

@@ -113,7 +113,10 @@ void PreprocessorNodelet::onInit()
   read.insert(own.begin(), own.end());
   for (const std::string& name : unreadParameters(private_nh, read))
     NODELET_WARN("%s", unreadSentence(name, "preprocessor", read).c_str());
-  private_nh.param("queue_size", queue_size_, queue_size_);
+  std::string problem;
+  queue_size_ = readIntParameter(private_nh, "queue_size", queue_size_, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
   if (queue_size_ < 1)
   {
     NODELET_ERROR("~queue_size must be at least 1 (%d); using 1", queue_size_);

@@ -92,11 +92,13 @@ void RouteFollowerNodelet::onInit()
   for (const std::string& name : unreadParameters(private_nh, read))
     NODELET_WARN("%s", unreadSentence(name, "route follower", read).c_str());
   private_nh.param("map", map_path_, std::string());
-  std::string autostart_problem;
-  const bool autostart = readBoolParameter(private_nh, "autostart", false, &autostart_problem);
-  if (!autostart_problem.empty())
-    NODELET_ERROR("%s", autostart_problem.c_str());
-  private_nh.param("control_rate", control_rate_hz_, control_rate_hz_);
+  std::string problem;
+  const bool autostart = readBoolParameter(private_nh, "autostart", false, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
+  control_rate_hz_ = readDoubleParameter(private_nh, "control_rate", control_rate_hz_, &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
   if (!(control_rate_hz_ >= 1.0 && control_rate_hz_ <= 1000.0))
   {
     NODELET_ERROR("~control_rate must be 1 to 1000 Hz (%g); using 20", control_rate_hz_);

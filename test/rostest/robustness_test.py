@@ -313,6 +313,24 @@ class RobustnessTest(unittest.TestCase):
                 rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
                 rospy.delete_param(name)
 
+    def test_a_recorders_static_numbers_of_the_wrong_type_are_named(self):
+        # ~queue_size 2.5 was read as 3 and ~flush_period 'soon' ignored, without a word: each is named
+        # with the value kept, and the recorder records.
+        name = '/repeat/typed_recorder'
+        try:
+            self.load_recorder(name, {'map': os.path.join(self.tmp, 'typed_map.bag'), 'queue_size': 2.5,
+                                      'flush_period': 'soon', 'max_queue': True}, '/typed_test/image_preprocessed')
+            for words in ('~queue_size = 2.500000 is not an integer; refused, keeping 100',
+                          "~flush_period = 'soon' is not a number; refused, keeping 1",
+                          '~max_queue = true is not an integer; refused, keeping '):
+                fx.wait_for(lambda: self.rosout.matching(words, Log.ERROR), 10, 'a message %r' % words)
+            status = self.diagnostics.next_status('repeat/typed_recorder: recording', lambda s: True,
+                                                  'the recorder to report')
+            self.assertEqual(status.message, 'recording, waiting for images on /typed_test/image_preprocessed')
+        finally:
+            rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
+            rospy.delete_param(name)
+
     def test_a_refusal_that_ends_mid_drive_does_not_restart_at_the_route_start(self):
         # Issue 33: after the preprocessing was changed and set back mid-drive, the localizer started
         # over at keyframe 0 (start_keyframe) and said tracking there for about 10 frames. The robot is
@@ -520,6 +538,9 @@ class RobustnessTest(unittest.TestCase):
             'max_step': 0,
             # A fraction for an integer: roscpp would read it rounded (13) under a log saying 30 is kept.
             'ring_buffer_rows': 12.7,
+            # The static ones the same: param<int> read 2.5 as 3, param<double> and param<bool> ignored a
+            # string, each without a word.
+            'debug_image_scale': 2.5, 'min_rate': 'fast', 'report_input_buffer': 'maybe',
             'ring_bufer_rows': 10,
             'normalization_strength': 0.2,
             'motion_type': 'odom',
@@ -530,6 +551,9 @@ class RobustnessTest(unittest.TestCase):
                          "~cost_function 'SAD' is not one of sad | census; keeping sad",
                          'max_step 0 is outside 1 .. 16 keyframes per frame; using 1',
                          '~ring_buffer_rows = 12.700000 is not an integer; refused, keeping 30',
+                         '~debug_image_scale = 2.500000 is not an integer; refused, keeping 8',
+                         "~min_rate = 'fast' is not a number; refused, keeping 1",
+                         "~report_input_buffer = 'maybe' is not true or false; using false",
                          '~ring_bufer_rows is not a parameter of the localizer and is ignored (did you mean '
                          'ring_buffer_rows?). It reads: ',
                          "~normalization_strength is not read here: it is the preprocessor's"):
