@@ -76,6 +76,19 @@ std::string joined(const std::set<std::string>& names)
   return text;
 }
 
+namespace
+{
+
+// Whether `name` is set under private_nh, its value then in *value; *problem cleared either way.
+bool givenParameter(const ros::NodeHandle& private_nh, const std::string& name, XmlRpc::XmlRpcValue* value,
+                    std::string* problem)
+{
+  problem->clear();
+  return private_nh.getParam(name, *value);
+}
+
+}  // namespace
+
 std::string motionTypeName(MotionType type)
 {
   switch (type)
@@ -92,9 +105,8 @@ std::string motionTypeName(MotionType type)
 
 MotionType readMotionType(const ros::NodeHandle& private_nh, MotionType fallback, std::string* problem)
 {
-  problem->clear();
   XmlRpc::XmlRpcValue value;
-  if (!private_nh.getParam("motion_type", value))
+  if (!givenParameter(private_nh, "motion_type", &value, problem))
     return fallback;
   const std::string using_fallback = "; using " + motionTypeName(fallback);
   if (value.getType() != XmlRpc::XmlRpcValue::TypeString)
@@ -112,9 +124,8 @@ MotionType readMotionType(const ros::NodeHandle& private_nh, MotionType fallback
 
 bool readBoolParameter(const ros::NodeHandle& private_nh, const std::string& name, bool fallback, std::string* problem)
 {
-  problem->clear();
   XmlRpc::XmlRpcValue value;
-  if (!private_nh.getParam(name, value))
+  if (!givenParameter(private_nh, name, &value, problem))
     return fallback;
   switch (value.getType())
   {
@@ -144,9 +155,8 @@ bool readBoolParameter(const ros::NodeHandle& private_nh, const std::string& nam
 
 int readIntParameter(const ros::NodeHandle& private_nh, const std::string& name, int fallback, std::string* problem)
 {
-  problem->clear();
   XmlRpc::XmlRpcValue value;
-  if (!private_nh.getParam(name, value))
+  if (!givenParameter(private_nh, name, &value, problem))
     return fallback;
   if (value.getType() == XmlRpc::XmlRpcValue::TypeInt)
     return static_cast<int>(value);
@@ -157,9 +167,8 @@ int readIntParameter(const ros::NodeHandle& private_nh, const std::string& name,
 double readDoubleParameter(const ros::NodeHandle& private_nh, const std::string& name, double fallback,
                            std::string* problem)
 {
-  problem->clear();
   XmlRpc::XmlRpcValue value;
-  if (!private_nh.getParam(name, value))
+  if (!givenParameter(private_nh, name, &value, problem))
     return fallback;
   if (value.getType() == XmlRpc::XmlRpcValue::TypeInt)
     return static_cast<int>(value);
