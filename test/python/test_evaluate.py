@@ -114,10 +114,38 @@ class BlindReferenceTest(unittest.TestCase):
         # a robot that stood before the run (keyframes 3 3 3): speed 0, the run answered 3: errors 1 1 1 1
         self.assertAlmostEqual(evaluate.blind_reference([0, 3, 3, 3, 4, 4, 4, 4, 5, 6], blind, window=2), 1.0)
 
-    def test_a_run_that_opens_the_sequence_starts_at_one_keyframe_a_query(self):
-        # truth 5 5 5 6 (first three blind): reckoned 5, 6, 7 -> errors 0, 1, 2
+    def test_a_fractional_speed_is_rounded_half_up_over_exactly_the_window(self):
+        # truth 5 6 6 (speed over the last 2 steps: (6 - 5) / 2 = 0.5; over 1 step it would be 0), then 4 blind
+        # queries: 6.5, 7, 7.5, 8 -> 7, 7, 8, 8 (half up; rounding half to even gives 6 and 8 for 6.5 and 7.5,
+        # truncating 6 and 7). Against 7 7 8 8 at tolerance 0: all 4 right.
+        truth, blind = [5, 6, 6, 7, 7, 8, 8], [0, 0, 0, 1, 1, 1, 1]
+        self.assertAlmostEqual(evaluate.blind_reference(truth, blind, window=2, tolerance=0), 1.0)
+        # speed 1/3 over 3 steps (truth 0 0 0 1): from 1, 1.33, 1.67, 2 -> 1, 2, 2 (rounding up: 2, 2, 2)
+        truth, blind = [0, 0, 0, 1, 1, 2, 2], [0, 0, 0, 0, 1, 1, 1]
+        self.assertAlmostEqual(evaluate.blind_reference(truth, blind, window=3, tolerance=0), 1.0)
+
+    def test_a_run_without_a_step_before_it_takes_the_speed_after_it(self):
+        # truth 5 5 5 6 (first three blind): the speed after the run is unknown (one query): 1 a query from 5,
+        # reckoned 5, 6, 7 -> errors 0, 1, 2
         self.assertAlmostEqual(evaluate.blind_reference([5, 5, 5, 6], [1, 1, 1, 0]), 3 / 4)
+        # map every 2nd frame: 0.5 a query over the 4 steps after the run (queries 4-8: 10 -> 12; the 5th step
+        # jumps to 20), the run from 8 - 0.5: 8, 8.5, 9, 9.5 -> 8, 9, 9, 10, the truth; at 1 a query it would
+        # answer 8, 9, 10, 11: two wrong
+        truth = [8, 9, 9, 10, 10, 11, 11, 12, 12, 20]
+        blind = [1, 1, 1, 1, 0, 0, 0, 0, 0, 0]
+        self.assertAlmostEqual(evaluate.blind_reference(truth, blind, window=4, tolerance=0), 1.0)
+        # after its first query alone (no step before it): the same rule, from that query's keyframe 8: 8.5, 9,
+        # 9.5 -> 9, 9, 10 (at 1 a query: 9, 10, 11)
+        self.assertAlmostEqual(evaluate.blind_reference([8, 9, 9, 10, 10, 11, 11, 12, 12], [0, 1, 1, 1, 0, 0, 0, 0, 0],
+                                                        window=4, tolerance=0), 1.0)
         self.assertAlmostEqual(evaluate.blind_reference([3, 4, 5], [0, 0, 0]), 1.0)
+
+    def test_fractional_truths_score_as_a_run_does(self):
+        # true keyframe 2.5 (between 2 and 3): an answer of 2 or 3 is exact; the run reckoned 3 from 2 at 1
+        self.assertAlmostEqual(evaluate.blind_reference([1, 2, 3], [0, 0, 1], window=1, tolerance=0,
+                                                        exact=[np.nan, np.nan, 2.5]), 1.0)
+        self.assertAlmostEqual(evaluate.blind_reference([1, 2, 2], [0, 0, 1], window=1, tolerance=0,
+                                                        exact=[np.nan, np.nan, 1.6]), 2 / 3)
 
 
 class EvaluateEndToEndTest(unittest.TestCase):
@@ -256,7 +284,15 @@ class EvaluateEndToEndTest(unittest.TestCase):
         m, out, _ = self.score([self.results, "-g", gt])
         self.assertEqual(m["blind_reference"]["blind_queries"], 3)
         self.assertAlmostEqual(m["blind_reference"]["within_tolerance"], 5 / 6)
-        self.assertIn("dead-reckoned at the true speed of the 10 before: within tolerance 0.833", out)
+        self.assertIn("dead-reckoned at the true mean speed over the 10 steps before them: within tolerance 0.833",
+                      out)
+        m, _, _ = self.score([self.results, "-g", gt, "--tolerance", "0"])   # the run's query 3 alone
+        self.assertAlmostEqual(m["blind_reference"]["within_tolerance"], 4 / 6)
+        # a fractional truth for query 3 (3.6: the answer 3 is one off) is scored as the run's answers are
+        write(gt, "query_index,keyframe,keyframe_exact,query_stationary,keyframe_stationary\n"
+                  "0,0,,0,0\n1,1,,0,0\n2,2,,0,0\n3,3,3.6,0,1\n4,3,,0,1\n5,3,,0,1\n")
+        m, _, _ = self.score([self.results, "-g", gt, "--tolerance", "0"])
+        self.assertAlmostEqual(m["blind_reference"]["within_tolerance"], 3 / 6)
         m, _, _ = self.score([self.results, "--identity"])
         self.assertNotIn("blind_reference", m)
 
