@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace along_route_localization
@@ -36,7 +38,7 @@ std::string parameterValueText(const XmlRpc::XmlRpcValue& value)
     case XmlRpc::XmlRpcValue::TypeString:
       return "'" + static_cast<std::string>(v) + "'";
     case XmlRpc::XmlRpcValue::TypeDouble:
-      return std::to_string(static_cast<double>(v));
+      return numberText(static_cast<double>(v));
     case XmlRpc::XmlRpcValue::TypeInt:
       return std::to_string(static_cast<int>(v));
     case XmlRpc::XmlRpcValue::TypeBoolean:
@@ -44,6 +46,25 @@ std::string parameterValueText(const XmlRpc::XmlRpcValue& value)
     default:
       return v.toXml();  // a list, a dictionary, a date: rare enough to show as the server has it
   }
+}
+
+std::string numberText(double value)
+{
+  std::ostringstream text;
+  text << value;
+  return text.str();
+}
+
+bool readableAsInt(const XmlRpc::XmlRpcValue& value)
+{
+  if (value.getType() == XmlRpc::XmlRpcValue::TypeInt)
+    return true;
+  if (value.getType() != XmlRpc::XmlRpcValue::TypeDouble)
+    return false;
+  const double number = static_cast<double>(const_cast<XmlRpc::XmlRpcValue&>(value));
+  return std::isfinite(number) && number == std::floor(number) &&
+         number >= static_cast<double>(std::numeric_limits<int>::min()) &&
+         number <= static_cast<double>(std::numeric_limits<int>::max());
 }
 
 std::string mistypedSentence(const std::string& name, const XmlRpc::XmlRpcValue& value, const std::string& type,
@@ -150,6 +171,7 @@ bool readBoolParameter(const ros::NodeHandle& private_nh, const std::string& nam
   }
   *problem = "~" + name + " = " + parameterValueText(value) + " is not true or false; using " +
              (fallback ? "true" : "false");
+  private_nh.setParam(name, fallback);
   return fallback;
 }
 
@@ -158,9 +180,11 @@ int readIntParameter(const ros::NodeHandle& private_nh, const std::string& name,
   XmlRpc::XmlRpcValue value;
   if (!givenParameter(private_nh, name, &value, problem))
     return fallback;
-  if (value.getType() == XmlRpc::XmlRpcValue::TypeInt)
-    return static_cast<int>(value);
+  if (readableAsInt(value))
+    return value.getType() == XmlRpc::XmlRpcValue::TypeInt ? static_cast<int>(value) :
+                                                              static_cast<int>(static_cast<double>(value));
   *problem = mistypedSentence(name, value, "int", std::to_string(fallback));
+  private_nh.setParam(name, fallback);
   return fallback;
 }
 
@@ -174,9 +198,20 @@ double readDoubleParameter(const ros::NodeHandle& private_nh, const std::string&
     return static_cast<int>(value);
   if (value.getType() == XmlRpc::XmlRpcValue::TypeDouble)
     return static_cast<double>(value);
-  std::ostringstream kept;
-  kept << fallback;
-  *problem = mistypedSentence(name, value, "double", kept.str());
+  *problem = mistypedSentence(name, value, "double", numberText(fallback));
+  private_nh.setParam(name, fallback);
+  return fallback;
+}
+
+std::string readStringParameter(const ros::NodeHandle& private_nh, const std::string& name,
+                                const std::string& fallback, std::string* problem)
+{
+  XmlRpc::XmlRpcValue value;
+  if (!givenParameter(private_nh, name, &value, problem))
+    return fallback;
+  if (value.getType() == XmlRpc::XmlRpcValue::TypeString)
+    return static_cast<std::string>(value);
+  *problem = "~" + name + " = " + parameterValueText(value) + " is not a string; ignored";
   return fallback;
 }
 

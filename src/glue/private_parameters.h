@@ -27,9 +27,17 @@ std::set<std::string> configParameterNames()
   return names;
 }
 
-/// A parameter's value as a log shows it: 'text' for a string, 2.500000, 3, true; XML for a list or a
+/// A parameter's value as a log shows it: 'text' for a string, 2.5, 3, true; XML for a list or a
 /// dictionary.
 std::string parameterValueText(const XmlRpc::XmlRpcValue& value);
+
+/// A number as the logs show it: 6 significant digits, no trailing zeros (1, 2.5, 1e-09).
+std::string numberText(double value);
+
+/// Whether an integer parameter can take `value` as it is: an integer, or a number with no fraction in the
+/// int range (100.0, which roscpp reads as 100); not a fraction (roscpp would round 2.5 to 3), a string or
+/// a bool.
+bool readableAsInt(const XmlRpc::XmlRpcValue& value);
 
 /// "~name = value is not an integer; refused, keeping default".
 std::string mistypedSentence(const std::string& name, const XmlRpc::XmlRpcValue& value, const std::string& type,
@@ -54,7 +62,7 @@ std::vector<std::string> mistypedParameters(const ros::NodeHandle& private_nh)
     const XmlRpc::XmlRpcValue::Type type = value.getType();
     bool readable = false;
     if (description->type == "int")
-      readable = type == XmlRpc::XmlRpcValue::TypeInt;
+      readable = readableAsInt(value);
     else if (description->type == "double")
       readable = type == XmlRpc::XmlRpcValue::TypeInt || type == XmlRpc::XmlRpcValue::TypeDouble;
     else if (description->type == "str")
@@ -73,7 +81,7 @@ std::vector<std::string> mistypedParameters(const ros::NodeHandle& private_nh)
     }
     else if (description->type == "double")
     {
-      kept_text = std::to_string(boost::any_cast<double>(kept));
+      kept_text = numberText(boost::any_cast<double>(kept));
       private_nh.setParam(description->name, boost::any_cast<double>(kept));
     }
     else if (description->type == "str")
@@ -119,21 +127,30 @@ MotionType readMotionType(const ros::NodeHandle& private_nh, MotionType fallback
 /// A static bool parameter as set under private_nh; `fallback` when unset. Takes a bool, the integers 0
 /// and 1 (roslaunch types `value="0"` as an integer, which ros::NodeHandle::param<bool> ignores without a
 /// word: `teach.launch autostart:=0` recorded from the first frame) and the strings true / false / 1 / 0 /
-/// yes / no / on / off; anything else gives `fallback` and *problem the sentence for the log ("~autostart =
-/// 'maybe' is not true or false; using true"); else *problem is empty.
+/// yes / no / on / off; anything else gives `fallback`, set in its place on the parameter server, and
+/// *problem the sentence for the log ("~autostart = 'maybe' is not true or false; using true"); else
+/// *problem is empty.
 bool readBoolParameter(const ros::NodeHandle& private_nh, const std::string& name, bool fallback, std::string* problem);
 
-/// A static integer parameter as set under private_nh; `fallback` when unset. Takes an integer only: a
-/// fraction (which ros::NodeHandle::param<int> reads rounded, 2.5 as 3, without a word), a string or a bool
-/// gives `fallback` and *problem the sentence for the log ("~queue_size = 2.500000 is not an integer;
-/// refused, keeping 100"); else *problem is empty. The range is the caller's to check.
+/// A static integer parameter as set under private_nh; `fallback` when unset. Takes what readableAsInt
+/// takes: a fraction (which ros::NodeHandle::param<int> reads rounded, 2.5 as 3, without a word), a string
+/// or a bool gives `fallback`, set in its place on the parameter server, and *problem the sentence for the
+/// log ("~queue_size = 2.5 is not an integer; refused, keeping 100"); else *problem is empty. The range is
+/// the caller's to check.
 int readIntParameter(const ros::NodeHandle& private_nh, const std::string& name, int fallback, std::string* problem);
 
 /// A static number parameter as set under private_nh; `fallback` when unset. Takes an integer or a
 /// fraction; a string or a bool (which ros::NodeHandle::param<double> ignores without a word) gives
-/// `fallback` and *problem the sentence for the log; else *problem is empty.
+/// `fallback`, set in its place on the parameter server, and *problem the sentence for the log; else
+/// *problem is empty.
 double readDoubleParameter(const ros::NodeHandle& private_nh, const std::string& name, double fallback,
                            std::string* problem);
+
+/// A static string parameter (a path) as set under private_nh; `fallback` when unset. Anything but a
+/// string (`map: 2024`, which ros::NodeHandle::param<std::string> ignores without a word) gives `fallback`
+/// and *problem the sentence for the log; else *problem is empty.
+std::string readStringParameter(const ros::NodeHandle& private_nh, const std::string& name,
+                                const std::string& fallback, std::string* problem);
 
 }  // namespace along_route_localization
 

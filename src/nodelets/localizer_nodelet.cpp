@@ -317,8 +317,9 @@ void LocalizerNodelet::onInit()
   }
 
   image_topic_ = nh.resolveName("image_preprocessed");  // before the diagnostics timer reads it
-  std::string path;
-  private_nh.param("map", path, std::string());
+  const std::string path = readStringParameter(private_nh, "map", std::string(), &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
   if (path.empty())
   {
     map_error_ = "no map loaded: set ~map or call ~load_map";

@@ -91,8 +91,10 @@ void RouteFollowerNodelet::onInit()
   read.insert(own.begin(), own.end());
   for (const std::string& name : unreadParameters(private_nh, read))
     NODELET_WARN("%s", unreadSentence(name, "route follower", read).c_str());
-  private_nh.param("map", map_path_, std::string());
   std::string problem;
+  map_path_ = readStringParameter(private_nh, "map", std::string(), &problem);
+  if (!problem.empty())
+    NODELET_ERROR("%s", problem.c_str());
   const bool autostart = readBoolParameter(private_nh, "autostart", false, &problem);
   if (!problem.empty())
     NODELET_ERROR("%s", problem.c_str());

@@ -320,13 +320,28 @@ class RobustnessTest(unittest.TestCase):
         try:
             self.load_recorder(name, {'map': os.path.join(self.tmp, 'typed_map.bag'), 'queue_size': 2.5,
                                       'flush_period': 'soon', 'max_queue': True}, '/typed_test/image_preprocessed')
-            for words in ('~queue_size = 2.500000 is not an integer; refused, keeping 100',
+            for words in ('~queue_size = 2.5 is not an integer; refused, keeping 100',
                           "~flush_period = 'soon' is not a number; refused, keeping 1",
                           '~max_queue = true is not an integer; refused, keeping '):
                 fx.wait_for(lambda: self.rosout.matching(words, Log.ERROR), 10, 'a message %r' % words)
             status = self.diagnostics.next_status('repeat/typed_recorder: recording', lambda s: True,
                                                   'the recorder to report')
             self.assertEqual(status.message, 'recording, waiting for images on /typed_test/image_preprocessed')
+            # The parameter server shows the values kept, as for the dynamic parameters.
+            self.assertEqual(rospy.get_param(name + '/queue_size'), 100)
+            self.assertEqual(rospy.get_param(name + '/flush_period'), 1.0)
+        finally:
+            rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
+            rospy.delete_param(name)
+
+    def test_a_map_path_that_is_not_a_string_is_named(self):
+        # ~map: 2024 (YAML reads it as a number) was ignored without a word; the localizer then said only
+        # that no ~map was set.
+        name = '/repeat/numbered_localizer'
+        self.load_localizer(name, {'map': 2024}, '/repeat/numbered_localization')
+        try:
+            words = '~map = 2024 is not a string; ignored'
+            fx.wait_for(lambda: self.rosout.matching(words, Log.ERROR), 10, 'a message %r' % words)
         finally:
             rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
             rospy.delete_param(name)
@@ -541,6 +556,8 @@ class RobustnessTest(unittest.TestCase):
             # The static ones the same: param<int> read 2.5 as 3, param<double> and param<bool> ignored a
             # string, each without a word.
             'debug_image_scale': 2.5, 'min_rate': 'fast', 'report_input_buffer': 'maybe',
+            # Taken as given: an integer for a number, a whole number for an integer (roscpp reads both).
+            'max_rate': 500, 'search_radius': 20.0,
             'ring_bufer_rows': 10,
             'normalization_strength': 0.2,
             'motion_type': 'odom',
@@ -550,8 +567,8 @@ class RobustnessTest(unittest.TestCase):
                          "~motion_type 'odom' is not one of none | twist | odometry; using none: the images alone",
                          "~cost_function 'SAD' is not one of sad | census; keeping sad",
                          'max_step 0 is outside 1 .. 16 keyframes per frame; using 1',
-                         '~ring_buffer_rows = 12.700000 is not an integer; refused, keeping 30',
-                         '~debug_image_scale = 2.500000 is not an integer; refused, keeping 8',
+                         '~ring_buffer_rows = 12.7 is not an integer; refused, keeping 30',
+                         '~debug_image_scale = 2.5 is not an integer; refused, keeping 8',
                          "~min_rate = 'fast' is not a number; refused, keeping 1",
                          "~report_input_buffer = 'maybe' is not true or false; using false",
                          '~ring_bufer_rows is not a parameter of the localizer and is ignored (did you mean '
@@ -561,6 +578,10 @@ class RobustnessTest(unittest.TestCase):
             self.assertEqual(self.rosout.matching('Ignoring ~seqslam'), [])
             # The value the log says is kept is the one used (the reconfigure server writes it back).
             self.assertEqual(rospy.get_param(name + '/ring_buffer_rows'), 30)
+            self.assertEqual(rospy.get_param(name + '/debug_image_scale'), 8)
+            self.assertEqual(rospy.get_param(name + '/search_radius'), 20)
+            self.assertEqual(self.rosout.matching('~max_rate'), [])
+            self.assertEqual(self.rosout.matching('~search_radius'), [])
             # What is used is said once: the corrected value, the values taken.
             self.assertTrue(self.rosout.matching('exclusion_radius 5 -> 1'))
             self.assertTrue(self.rosout.matching('min_init_frames 5 -> 25'))
