@@ -30,15 +30,28 @@ std::vector<std::string> unreadParameters(const ros::NodeHandle& private_nh, con
   return unread;
 }
 
-std::string parameterValueText(const XmlRpc::XmlRpcValue& value)
+namespace
+{
+
+std::string numberText(double value, int digits)
+{
+  std::ostringstream text;
+  text.precision(digits);
+  text << value;
+  return text.str();
+}
+
+}  // namespace
+
+std::string parameterText(const XmlRpc::XmlRpcValue& value, int digits)
 {
   XmlRpc::XmlRpcValue& v = const_cast<XmlRpc::XmlRpcValue&>(value);  // XmlRpcValue's casts are not const
   switch (value.getType())
   {
     case XmlRpc::XmlRpcValue::TypeString:
-      return "'" + static_cast<std::string>(v) + "'";
+      return static_cast<std::string>(v);
     case XmlRpc::XmlRpcValue::TypeDouble:
-      return numberText(static_cast<double>(v));
+      return numberText(static_cast<double>(v), digits);
     case XmlRpc::XmlRpcValue::TypeInt:
       return std::to_string(static_cast<int>(v));
     case XmlRpc::XmlRpcValue::TypeBoolean:
@@ -48,11 +61,15 @@ std::string parameterValueText(const XmlRpc::XmlRpcValue& value)
   }
 }
 
+std::string parameterValueText(const XmlRpc::XmlRpcValue& value)
+{
+  const std::string text = parameterText(value, 6);
+  return value.getType() == XmlRpc::XmlRpcValue::TypeString ? "'" + text + "'" : text;
+}
+
 std::string numberText(double value)
 {
-  std::ostringstream text;
-  text << value;
-  return text.str();
+  return numberText(value, 6);
 }
 
 bool readableAsInt(const XmlRpc::XmlRpcValue& value)

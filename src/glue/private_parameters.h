@@ -27,8 +27,11 @@ std::set<std::string> configParameterNames()
   return names;
 }
 
-/// A parameter's value as a log shows it: 'text' for a string, 2.5, 3, true; XML for a list or a
-/// dictionary.
+/// A parameter's value as text: a string as it is, a number with `digits` significant digits (17: the
+/// double exactly, to be parsed again), true / false; XML for a list or a dictionary.
+std::string parameterText(const XmlRpc::XmlRpcValue& value, int digits);
+
+/// A parameter's value as a log shows it (parameterText, 6 digits): 'text' for a string, 2.5, 3, true.
 std::string parameterValueText(const XmlRpc::XmlRpcValue& value);
 
 /// A number as the logs show it: 6 significant digits, no trailing zeros (1, 2.5, 1e-09).

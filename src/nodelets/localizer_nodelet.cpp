@@ -22,7 +22,6 @@
 #include <cstdio>
 #include <memory>
 #include <set>
-#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -154,27 +153,6 @@ uint8_t toMsgStatus(LocalizationStatus status)
   return Localization::STATUS_LOST;
 }
 
-std::string toText(const XmlRpc::XmlRpcValue& value)
-{
-  std::ostringstream text;
-  text.precision(17);
-  switch (value.getType())
-  {
-    case XmlRpc::XmlRpcValue::TypeBoolean:
-      return static_cast<bool>(const_cast<XmlRpc::XmlRpcValue&>(value)) ? "true" : "false";
-    case XmlRpc::XmlRpcValue::TypeInt:
-      text << static_cast<int>(const_cast<XmlRpc::XmlRpcValue&>(value));
-      return text.str();
-    case XmlRpc::XmlRpcValue::TypeDouble:
-      text << static_cast<double>(const_cast<XmlRpc::XmlRpcValue&>(value));
-      return text.str();
-    case XmlRpc::XmlRpcValue::TypeString:
-      return static_cast<std::string>(const_cast<XmlRpc::XmlRpcValue&>(value));
-    default:
-      return value.toXml();
-  }
-}
-
 int largestShiftFor(int width)
 {
   return std::max(0, (width - 1) / 2);  // leaves a compared strip of at least one column
@@ -204,7 +182,7 @@ LocalizerParams LocalizerNodelet::staticParams(const ros::NodeHandle& private_nh
     if (dynamic.count(name) || !private_nh.getParam(name, value))
       continue;
     bool refused = false;
-    const std::string sentence = setParameterChecked(name, toText(value), &checked, &refused);
+    const std::string sentence = setParameterChecked(name, parameterText(value, 17), &checked, &refused);
     if (!sentence.empty())
       NODELET_WARN("~%s", sentence.c_str());
     if (!refused)
