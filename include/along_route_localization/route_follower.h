@@ -92,13 +92,13 @@ struct FollowerCommand
 /// initializing, at the end of the route, and when localizations stopped coming; slow_factor, never 0 for
 /// low confidence, until the first confident localization after start() or after the track began: the
 /// robot standing still shows the localizer no new view, so a stop there would never end, and its
-/// loss detection stops the robot if no confident answer comes), approached from the
-/// previous command at no more than max_linear_accel (speeding up) or max_linear_decel (slowing down) and
-/// max_angular_accel: a jump of the matched keyframe or a stop never makes a jump in the command. The taught
-/// turn rate is scaled like the speed so that the path keeps the taught curvature. A stop for low confidence or a loss comes after a creep (creepOrStop):
-/// s = slow_factor, the motion taught on from the last tracked keyframe reckoned by the distance crept, no
-/// homing term, at most recovery_distance_m, waiting while the view is featureless; a standing robot would
-/// bring the localizer no new view to find the route again.
+/// loss detection stops the robot if no confident answer comes), approached from the previous command at
+/// no more than max_linear_accel (speeding up) or max_linear_decel (slowing down) and max_angular_accel: a
+/// jump of the matched keyframe or a stop never makes a jump in the command. The taught turn rate is scaled
+/// like the speed so that the path keeps the taught curvature. A stop for low confidence or a loss comes
+/// after a creep (creepOrStop): s = slow_factor, the motion taught on from the last tracked keyframe
+/// reckoned by the distance crept, no homing term, at most recovery_distance_m, waiting while the view is
+/// featureless; a standing robot would bring the localizer no new view to find the route again.
 ///
 /// States: idle (before start), following, paused, stopped (~stop), finished (end of the route). Only
 /// following drives; the others ramp the command down to zero.
