@@ -1,5 +1,6 @@
 #include "glue/map_io.h"
 
+#include <dirent.h>
 #include <fcntl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
@@ -16,6 +17,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <sstream>
 #include <stdexcept>
@@ -798,6 +800,140 @@ void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe, const KeyframeMo
   pending_motion_.push_back(motion);
 }
 
+namespace
+{
+
+/// rosbag::Bag's destructor closes the bag, and closing a bag whose write failed (a disk that filled up)
+/// fails again and throws, from the destructor: std::terminate, which ends the whole nodelet manager. So
+/// a bag that failed is never destroyed: it is kept, for the life of the process, in a list that is never
+/// freed (its buffers, at most about a chunk, once per failed write; the room check before each flush
+/// stops a disk that stays full from failing again). The descriptor it holds on `file` is pointed at
+/// /dev/null: a removed half-written file then frees its disk space at once, not when the process ends,
+/// and whatever the bag's stdio buffer might still write at exit goes nowhere. Returns false when no
+/// descriptor was found (no /proc).
+bool abandonBag(std::unique_ptr<rosbag::Bag>* bag, const std::string& file)
+{
+  static std::mutex mutex;
+  static std::vector<rosbag::Bag*>* const abandoned = new std::vector<rosbag::Bag*>;  // never freed, see above
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    abandoned->push_back(bag->release());
+  }
+  struct stat target;
+  if (::stat(file.c_str(), &target) != 0)
+    return false;
+  DIR* fds = ::opendir("/proc/self/fd");
+  if (!fds)
+    return false;
+  const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+  bool found = false;
+  while (const dirent* entry = ::readdir(fds))
+  {
+    char* end = nullptr;
+    const long fd = std::strtol(entry->d_name, &end, 10);
+    struct stat info;
+    if (null >= 0 && end != entry->d_name && *end == '\0' && fd != ::dirfd(fds) && fd != null &&
+        ::fstat(static_cast<int>(fd), &info) == 0 && info.st_dev == target.st_dev && info.st_ino == target.st_ino)
+      found = ::dup2(null, static_cast<int>(fd)) >= 0 || found;
+  }
+  ::closedir(fds);
+  if (null >= 0)
+    ::close(null);
+  return found;
+}
+
+/// What rosbag's append changes in a bag besides adding chunks: it cuts the index off (connection and
+/// chunk info records, from index_pos to the end) and rewrites the file header record. Saved before an
+/// append, they put the file back byte for byte when the append fails.
+struct BagEnds
+{
+  std::string head;  // "#ROSBAG V2.0\n" and the file header record
+  uint64_t index_pos = 0;
+  std::string index;  // from index_pos to the end of the file
+};
+
+/// The ends of the indexed bag at `path`; false when it is not one (then it cannot be put back).
+bool readBagEnds(const std::string& path, BagEnds* ends)
+{
+  std::ifstream file(path, std::ios::binary);
+  file.seekg(0, std::ios::end);
+  const std::streamoff size = file.tellg();
+  if (!file || size < 13 + 8)
+    return false;
+  file.seekg(13);
+  char length[4];
+  if (!file.read(length, 4))
+    return false;
+  const uint32_t header_length = Cursor(length, 4).u32("the file header length");
+  if (header_length > kMaxRecordHeaderBytes || 13 + 8 + static_cast<std::streamoff>(header_length) > size)
+    return false;
+  std::string header(header_length, '\0');
+  if (!file.read(&header[0], header_length) || !file.read(length, 4))
+    return false;
+  const std::streamoff head_size = 13 + 8 + static_cast<std::streamoff>(header_length) +
+                                   static_cast<std::streamoff>(Cursor(length, 4).u32("the file header data length"));
+  uint64_t index_pos = 0;
+  try
+  {
+    const Fields fields = parseFields(header);
+    const auto field = fields.find("index_pos");
+    if (field == fields.end() || field->second.size() != 8)
+      return false;
+    for (int i = 7; i >= 0; --i)
+      index_pos = index_pos << 8 | static_cast<unsigned char>(field->second[static_cast<size_t>(i)]);
+  }
+  catch (const CorruptMap&)
+  {
+    return false;
+  }
+  if (head_size > size || index_pos < static_cast<uint64_t>(head_size) || index_pos > static_cast<uint64_t>(size))
+    return false;
+  ends->head.resize(static_cast<size_t>(head_size));
+  ends->index.resize(static_cast<size_t>(static_cast<uint64_t>(size) - index_pos));
+  ends->index_pos = index_pos;
+  file.seekg(0);
+  if (!file.read(&ends->head[0], head_size))
+    return false;
+  file.seekg(static_cast<std::streamoff>(index_pos));
+  return static_cast<bool>(file.read(&ends->index[0], static_cast<std::streamsize>(ends->index.size())));
+}
+
+/// Writes all of `bytes` at `offset` of `fd`; false with errno set when it cannot.
+bool writeAllAt(int fd, const std::string& bytes, uint64_t offset)
+{
+  for (size_t done = 0; done < bytes.size();)
+  {
+    const ssize_t wrote = ::pwrite(fd, bytes.data() + done, bytes.size() - done, static_cast<off_t>(offset + done));
+    if (wrote < 0 && errno == EINTR)
+      continue;
+    if (wrote <= 0)
+      return false;
+    done += static_cast<size_t>(wrote);
+  }
+  return true;
+}
+
+/// Puts the bag at `path`, whose append failed, back as it was before it: the chunks added cut off (which
+/// frees what they took of the disk), then the index and the file header as they were. Returns what
+/// failed, or "".
+std::string putBackBagEnds(const std::string& path, const BagEnds& ends)
+{
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0)
+    return std::string("opening it: ") + std::strerror(errno);
+  std::string problem;
+  if (::ftruncate(fd, static_cast<off_t>(ends.index_pos)) != 0)
+    problem = std::string("cutting off the chunks added: ") + std::strerror(errno);
+  else if (!writeAllAt(fd, ends.index, ends.index_pos) || !writeAllAt(fd, ends.head, 0))
+    problem = std::string("writing its index again: ") + std::strerror(errno);
+  else if (::fsync(fd) != 0)
+    problem = std::string("syncing it: ") + std::strerror(errno);
+  ::close(fd);
+  return problem;
+}
+
+}  // namespace
+
 std::string MapWriter::roomProblem(uint64_t size, uint64_t added) const
 {
   // A write that fails part way leaves rosbag's file unindexed, and rosbag::Bag's destructor then throws
@@ -846,12 +982,14 @@ void MapWriter::flush()
                            << inQuotes(kept));
   }
   // The final name is moved aside while appending, so that it never names a bag being modified.
+  BagEnds ends;  // to put the map back as flushed when the append fails
+  const bool restorable = !first && readBagEnds(path_, &ends);
   if (!first && std::rename(path_.c_str(), active.c_str()) != 0)
     throw MapError("cannot move map file " + inQuotes(path_) + " to " + inQuotes(active) + ": " + std::strerror(errno));
+  std::unique_ptr<rosbag::Bag> bag(new rosbag::Bag);  // see abandonBag
   try
   {
-    rosbag::Bag bag;
-    bag.open(active, first ? rosbag::bagmode::Write : rosbag::bagmode::Append);
+    bag->open(active, first ? rosbag::bagmode::Write : rosbag::bagmode::Append);
     ros::Time bag_time = last_bag_time_;
     for (size_t i = 0; i < pending_.size(); ++i)
     {
@@ -866,25 +1004,44 @@ void MapWriter::flush()
         std_msgs::String info;
         info.data = "format=" + std::to_string(kMapFormat) + ";writer=along_route_localization" +
                     (writer_info_.empty() ? std::string() : ";" + writer_info_);
-        bag.write(kMapInfoTopic, bag_time, info);
+        bag->write(kMapInfoTopic, bag_time, info);
         std_msgs::String preprocessing;
         preprocessing.data = params_.serialize();
-        bag.write(kMapPreprocessingTopic, bag_time, preprocessing);
+        bag->write(kMapPreprocessingTopic, bag_time, preprocessing);
       }
-      bag.write(kMapKeyframesTopic, bag_time, pending_[i]);
+      bag->write(kMapKeyframesTopic, bag_time, pending_[i]);
       if (pending_motion_[i])
       {
         KeyframeMotion motion = *pending_motion_[i];
         motion.keyframe = static_cast<uint32_t>(written_ + i);
-        bag.write(kMapMotionTopic, bag_time, motion);
+        bag->write(kMapMotionTopic, bag_time, motion);
       }
     }
-    bag.close();
+    bag->close();
     last_bag_time_ = bag_time;
   }
-  catch (const rosbag::BagException& e)
+  catch (const std::exception& e)
   {
-    throw MapError("writing map file " + inQuotes(active) + " failed: " + e.what());
+    // A disk that filled up since the room check, or an I/O error: the keyframes stay buffered, and the
+    // map as flushed is put back under its final name.
+    const std::string failed = "writing map file " + inQuotes(active) + " failed (" + e.what() + ")";
+    const bool abandoned = abandonBag(&bag, active);
+    const std::string kept = "the keyframes stay buffered";
+    if (first)
+    {
+      std::remove(active.c_str());
+      throw MapError(failed + "; nothing was written yet, " + kept);
+    }
+    const std::string problem = !abandoned  ? std::string("the failed writer's descriptor was not found in /proc") :
+                                !restorable ? std::string("it was not an indexed bag before") :
+                                              putBackBagEnds(active, ends);
+    if (!problem.empty())
+      throw MapError(failed + "; putting it back as flushed failed (" + problem + "): " + inQuotes(active) +
+                     " holds the keyframes flushed so far (`rosbag reindex` recovers them), " + kept);
+    if (std::rename(active.c_str(), path_.c_str()) != 0)
+      throw MapError(failed + "; the map as flushed is back in " + inQuotes(active) + " but renaming it to " +
+                     inQuotes(path_) + " failed (" + std::strerror(errno) + "), " + kept);
+    throw MapError(failed + "; the map as flushed is kept and " + kept);
   }
   if (std::rename(active.c_str(), path_.c_str()) != 0)
     throw MapError("cannot rename " + inQuotes(active) + " to " + inQuotes(path_) + ": " + std::strerror(errno));
@@ -907,18 +1064,20 @@ void MapWriter::writeOneConnectionPerTopic()
                            << no_room << "); it keeps one per flush, which reads the same");
     return;
   }
+  std::unique_ptr<rosbag::Bag> out(new rosbag::Bag);  // see abandonBag
   try
   {
     rosbag::Bag in(path_, rosbag::bagmode::Read);
-    rosbag::Bag out(active, rosbag::bagmode::Write);
+    out->open(active, rosbag::bagmode::Write);
     // Bag times strictly increase (flush()), so time order is the map order. rosbag gives messages
     // written with equal connection headers on one topic one connection.
     for (const rosbag::MessageInstance& message : rosbag::View(in))
-      out.write(message.getTopic(), message.getTime(), message, message.getConnectionHeader());
-    out.close();
+      out->write(message.getTopic(), message.getTime(), message, message.getConnectionHeader());
+    out->close();
   }
-  catch (const rosbag::BagException& e)
+  catch (const std::exception& e)
   {
+    abandonBag(&out, active);
     std::remove(active.c_str());
     ROS_WARN_STREAM("Map " << inQuotes(path_) << " is complete, but writing it with one connection per topic failed ("
                            << e.what() << "); it keeps one per flush, which reads the same");

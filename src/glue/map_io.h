@@ -116,7 +116,7 @@ public:
   MapWriter(const std::string& path, const PreprocessingParams& params,
             const std::string& writer_info = std::string());
   /// close(); errors are logged, not thrown.
-  ~MapWriter();
+  virtual ~MapWriter();
 
   MapWriter(const MapWriter&) = delete;
   MapWriter& operator=(const MapWriter&) = delete;
@@ -128,7 +128,8 @@ public:
 
   /// Writes the buffered keyframes; afterwards `<path>` is a complete map. No-op when nothing is
   /// buffered. Throws MapError (the keyframes stay buffered, so a later flush may retry), also, before the
-  /// file is touched, when the disk or the file size limit leaves no room for them.
+  /// file is touched, when the disk or the file size limit leaves no room for them; when the write itself
+  /// fails (a disk that filled up meanwhile), `<path>` is put back byte for byte as it was flushed.
   void flush();
 
   /// flush() and stop accepting keyframes; a map written by more than one flush is then written again
@@ -146,12 +147,15 @@ public:
   /// Where the map that was at path() before this recording is kept; empty when there was none.
   const std::string& replacedPath() const { return replaced_path_; }
 
+protected:
+  /// Why `added` bytes cannot be written to a file of `size` bytes next to path() (the file size limit, the
+  /// disk's free space), or "" when they can. Virtual for the tests: a disk can fill up between this check
+  /// and the write, and a test writer that skips it shows what happens then.
+  virtual std::string roomProblem(uint64_t size, uint64_t added) const;
+
 private:
   /// Writes the map at path() again with one connection per topic (see the class comment).
   void writeOneConnectionPerTopic();
-  /// Why `added` bytes cannot be written to a file of `size` bytes next to path() (the file size limit, the
-  /// disk's free space), or "" when they can.
-  std::string roomProblem(uint64_t size, uint64_t added) const;
 
   std::string path_;
   PreprocessingParams params_;

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include <csignal>
+#include <dirent.h>
 #include <sys/resource.h>
 
 #include <rosbag/bag.h>
@@ -225,6 +226,180 @@ TEST_F(MapIoTest, AFlushWithoutRoomKeepsTheMapAndALaterFlushWritesEverything)
   writer.close();
   EXPECT_EQ(45u, readMap(file).size());
   EXPECT_FALSE(exists(file + ".active"));
+}
+
+// A disk can fill up between the room check and the write (another process writing to it). A writer whose
+// check never finds a problem shows what happens then; the process's file size limit makes the write fail
+// (EFBIG, as ENOSPC on a full disk).
+class BlindMapWriter : public MapWriter
+{
+public:
+  using MapWriter::MapWriter;
+
+protected:
+  std::string roomProblem(uint64_t /*size*/, uint64_t /*added*/) const override { return ""; }
+};
+
+/// Sets the process's file size limit for its lifetime (SIGXFSZ ignored: EFBIG instead of the signal).
+class FileSizeLimit
+{
+public:
+  explicit FileSizeLimit(off_t bytes)
+  {
+    getrlimit(RLIMIT_FSIZE, &old_limit_);
+    old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+    struct rlimit limit = old_limit_;
+    limit.rlim_cur = static_cast<rlim_t>(bytes);
+    ok_ = setrlimit(RLIMIT_FSIZE, &limit) == 0;
+  }
+  ~FileSizeLimit()
+  {
+    setrlimit(RLIMIT_FSIZE, &old_limit_);
+    std::signal(SIGXFSZ, old_handler_);
+  }
+  bool ok() const { return ok_; }
+
+private:
+  struct rlimit old_limit_;
+  sighandler_t old_handler_;
+  bool ok_ = false;
+};
+
+/// How many of this process's descriptors refer to `file` (also once it is removed: "<file> (deleted)").
+int descriptorsOn(const std::string& file)
+{
+  int count = 0;
+  DIR* fds = opendir("/proc/self/fd");
+  if (!fds)
+    return -1;
+  while (const dirent* entry = readdir(fds))
+  {
+    char target[4096];
+    const std::string link = std::string("/proc/self/fd/") + entry->d_name;
+    const ssize_t length = readlink(link.c_str(), target, sizeof(target) - 1);
+    if (length > 0 && std::string(target, static_cast<size_t>(length)).rfind(file, 0) == 0)
+      ++count;
+  }
+  closedir(fds);
+  return count;
+}
+
+/// The MapError message of writer->flush() (or close()), or "" when it went through.
+template <typename Call>
+std::string mapErrorOf(Call call)
+{
+  try
+  {
+    call();
+  }
+  catch (const MapError& e)
+  {
+    return e.what();
+  }
+  return "";
+}
+
+// Before, rosbag failed part way through the append, the Bag's destructor threw again from close() and
+// the process ended (std::terminate: the recorder's whole nodelet manager), leaving the map unindexed under
+// `.active`. Now the map file is put back byte for byte as it was flushed.
+TEST_F(MapIoTest, ADiskThatFillsDuringAnAppendKeepsTheMapAsFlushedByteForByte)
+{
+  const std::string file = path("map.bag");
+  cv::RNG rng(5);
+  BlindMapWriter writer(file, PreprocessingParams());
+  for (int k = 0; k < 4; ++k)
+    writer.add(keyframeMessage(randomKeyframe(rng), 10 + k));
+  writer.flush();
+  for (int k = 0; k < 3; ++k)
+    writer.add(keyframeMessage(randomKeyframe(rng), 20 + k));
+  writer.flush();  // two flushes: the index holds two connections per topic, all of it to be put back
+  const std::string flushed = readAll(file);
+  ASSERT_EQ(7u, readMap(file).size());
+
+  for (int k = 0; k < 40; ++k)
+    writer.add(keyframeMessage(randomKeyframe(rng), 30 + k));
+  std::string error;
+  {
+    // Room for about 10 of the 40 keyframes (2 KiB each): the append fails inside its chunk.
+    FileSizeLimit limit(static_cast<off_t>(flushed.size()) + 20 * 1024);
+    ASSERT_TRUE(limit.ok());
+    error = mapErrorOf([&] { writer.flush(); });
+  }
+  std::fflush(nullptr);  // as exit() does: what the failed writer's stdio buffer holds must not reach the map
+  std::printf("the failed flush said: %s\n", error.c_str());
+  EXPECT_NE(std::string::npos, error.find("writing map file")) << error;
+  EXPECT_NE(std::string::npos, error.find("stay buffered")) << error;
+  EXPECT_FALSE(exists(file + ".active"));
+  EXPECT_TRUE(readAll(file) == flushed) << "the map file is not as it was flushed (" << fileSize(file)
+                                        << " bytes, " << flushed.size() << " before)";
+  EXPECT_EQ("", readError(file));
+  {
+    rosbag::Bag bag(file, rosbag::bagmode::Read);  // rosbag's own reader: the index is whole again
+    EXPECT_EQ(7u, rosbag::View(bag, rosbag::TopicQuery(kMapKeyframesTopic)).size());
+  }
+  EXPECT_EQ(7u, writer.written());
+  EXPECT_EQ(47u, writer.added());
+  EXPECT_EQ(0, descriptorsOn(file)) << "the failed writer still holds the map file open";
+
+  writer.flush();  // room again: nothing was lost
+  EXPECT_EQ(47u, readMap(file).size());
+  writer.close();
+  const RouteMap closed = readMap(file);
+  ASSERT_EQ(47u, closed.size());
+  EXPECT_EQ(30, closed.stampNs(7));
+  EXPECT_EQ(69, closed.stampNs(46));
+  EXPECT_FALSE(exists(file + ".active"));
+}
+
+TEST_F(MapIoTest, ADiskThatFillsDuringTheFirstFlushLeavesNoFileAndLosesNoKeyframe)
+{
+  const std::string file = path("map.bag");
+  cv::RNG rng(6);
+  BlindMapWriter writer(file, PreprocessingParams());
+  for (int k = 0; k < 40; ++k)
+    writer.add(keyframeMessage(randomKeyframe(rng), 10 + k));
+  std::string error;
+  {
+    FileSizeLimit limit(30 * 1024);
+    ASSERT_TRUE(limit.ok());
+    error = mapErrorOf([&] { writer.flush(); });
+  }
+  EXPECT_NE(std::string::npos, error.find("writing map file")) << error;
+  EXPECT_FALSE(exists(file));
+  EXPECT_FALSE(exists(file + ".active")) << "a half-written first flush is left behind";
+  EXPECT_EQ(0, descriptorsOn(file)) << "a descriptor holds the removed half-written file's disk space";
+  EXPECT_EQ(0u, writer.written());
+  writer.close();
+  EXPECT_EQ(40u, readMap(file).size());
+}
+
+// close() writes a map flushed more than once again, with one connection per topic, into `.active`; when
+// the disk fills during that, the map as flushed stays and nothing is left behind.
+TEST_F(MapIoTest, ADiskThatFillsWhileClosingKeepsTheMapAsFlushed)
+{
+  const std::string file = path("map.bag");
+  cv::RNG rng(8);
+  BlindMapWriter writer(file, PreprocessingParams());
+  for (int flush = 0; flush < 3; ++flush)
+  {
+    for (int k = 0; k < 20; ++k)
+      writer.add(keyframeMessage(randomKeyframe(rng), 100 * flush + k));
+    writer.flush();
+  }
+  const std::string flushed = readAll(file);
+  std::string error;
+  {
+    FileSizeLimit limit(static_cast<off_t>(flushed.size()) / 2);  // the copy cannot fit
+    ASSERT_TRUE(limit.ok());
+    error = mapErrorOf([&] { writer.close(); });
+  }
+  std::fflush(nullptr);  // as exit() does
+  EXPECT_EQ("", error) << "closing a complete map failed";
+  EXPECT_TRUE(writer.closed());
+  EXPECT_FALSE(exists(file + ".active"));
+  EXPECT_TRUE(readAll(file) == flushed) << "the map file is not as it was flushed";
+  EXPECT_EQ(60u, readMap(file).size());
+  EXPECT_EQ(0, descriptorsOn(file)) << "a descriptor holds the removed half-written copy's disk space";
 }
 
 // Issue 33: each flush appended new connections (60 for 599 keyframes; a file 2.5x larger with a short
