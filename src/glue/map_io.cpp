@@ -832,8 +832,11 @@ bool abandonBag(std::unique_ptr<rosbag::Bag>* bag, const std::string& file)
     char* end = nullptr;
     const long fd = std::strtol(entry->d_name, &end, 10);
     struct stat info;
+    // Only descriptors open for writing: rosbag opens the bag it writes read-write, and a reader of the
+    // same file elsewhere in the manager (a localizer loading it) keeps its own.
     if (null >= 0 && end != entry->d_name && *end == '\0' && fd != ::dirfd(fds) && fd != null &&
-        ::fstat(static_cast<int>(fd), &info) == 0 && info.st_dev == target.st_dev && info.st_ino == target.st_ino)
+        ::fstat(static_cast<int>(fd), &info) == 0 && info.st_dev == target.st_dev &&
+        info.st_ino == target.st_ino && (::fcntl(static_cast<int>(fd), F_GETFL) & O_ACCMODE) != O_RDONLY)
       found = ::dup2(null, static_cast<int>(fd)) >= 0 || found;
   }
   ::closedir(fds);

@@ -319,12 +319,16 @@ TEST_F(MapIoTest, ADiskThatFillsDuringAnAppendKeepsTheMapAsFlushedByteForByte)
   for (int k = 0; k < 40; ++k)
     writer.add(keyframeMessage(randomKeyframe(rng), 30 + k));
   std::string error;
+  std::ifstream reader(file, std::ios::binary);  // the map open for reading elsewhere (a localizer loading it)
   {
     // Room for about 10 of the 40 keyframes (2 KiB each): the append fails inside its chunk.
     FileSizeLimit limit(static_cast<off_t>(flushed.size()) + 20 * 1024);
     ASSERT_TRUE(limit.ok());
     error = mapErrorOf([&] { writer.flush(); });
   }
+  EXPECT_TRUE(std::string(std::istreambuf_iterator<char>(reader), std::istreambuf_iterator<char>()) == flushed)
+      << "a reader of the map file lost it";
+  reader.close();
   std::fflush(nullptr);  // as exit() does: what the failed writer's stdio buffer holds must not reach the map
   std::printf("the failed flush said: %s\n", error.c_str());
   EXPECT_NE(std::string::npos, error.find("writing map file")) << error;
