@@ -746,75 +746,24 @@ void checkMapTarget(const std::string& path)
   std::remove(probe.c_str());
 }
 
-MapWriter::MapWriter(const std::string& path, const PreprocessingParams& params, const std::string& writer_info)
-  : path_(path), params_(params), writer_info_(writer_info)
-{
-  if (path_.empty())
-    throw MapError("no map file given (empty path)");
-  const std::string invalid = params_.validate();
-  if (!invalid.empty())
-    throw MapError("cannot record a map with invalid preprocessing parameters: " + invalid);
-  checkMapTarget(path_);
-  try
-  {
-    // Can it be written? The probe is removed again: a writer killed before its first flush leaves nothing.
-    rosbag::Bag bag;
-    bag.open(activePath(), rosbag::bagmode::Write);
-    bag.close();
-    std::remove(activePath().c_str());
-  }
-  catch (const rosbag::BagException& e)
-  {
-    throw MapError("cannot write map file " + inQuotes(activePath()) + ": " + e.what());
-  }
-}
-
-MapWriter::~MapWriter()
-{
-  try
-  {
-    close();
-  }
-  catch (const std::exception& e)
-  {
-    ROS_ERROR_STREAM("Closing map " << inQuotes(path_) << " failed: " << e.what());
-  }
-}
-
-void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe, const KeyframeMotionConstPtr& motion)
-{
-  if (closed_)
-    throw MapError("map " + inQuotes(path_) + " is closed; no keyframes can be added");
-  if (!keyframe)
-    throw MapError("null keyframe");
-  if (!isMono8(keyframe->encoding))
-    throw MapError("keyframe has encoding '" + keyframe->encoding + "'; a map holds mono8 preprocessed images");
-  if (static_cast<int>(keyframe->width) != params_.output_width ||
-      static_cast<int>(keyframe->height) != params_.output_height ||
-      keyframe->data.size() < static_cast<size_t>(keyframe->step) * keyframe->height ||
-      keyframe->step < keyframe->width)
-    throw MapError("keyframe is " + std::to_string(keyframe->width) + "x" + std::to_string(keyframe->height) +
-                   " px (" + std::to_string(keyframe->data.size()) + " bytes), but the map's preprocessing makes " +
-                   std::to_string(params_.output_width) + "x" + std::to_string(params_.output_height) + " px");
-  pending_.push_back(keyframe);
-  pending_motion_.push_back(motion);
-}
-
 namespace
 {
 
 /// rosbag::Bag's destructor closes the bag, and closing a bag whose write failed (a disk that filled up)
 /// fails again and throws, from the destructor: std::terminate, which ends the whole nodelet manager. So
-/// a bag that failed is never destroyed: it is kept, for the life of the process, in a list that is never
-/// freed (its buffers, at most about a chunk, once per failed write; the room check before each flush
-/// stops a disk that stays full from failing again). The descriptor it holds on `file` is pointed at
-/// /dev/null: a removed half-written file then frees its disk space at once, not when the process ends,
-/// and whatever the bag's stdio buffer might still write at exit goes nowhere. Returns false when no
-/// descriptor was found (no /proc).
+/// a bag being written lives on the heap (newBag), and one that failed is never destroyed: it is kept, for
+/// the life of the process, in a list that is never freed (its buffers, at most about a chunk, once per
+/// failed write; the room check before each flush stops a disk that stays full from failing again). Any
+/// descriptor of this process still open for writing on `file` is pointed at /dev/null: a removed
+/// half-written file then frees its disk space at once, not when the process ends, and whatever the bag's
+/// stdio buffer might still write at exit goes nowhere. Returns true when nothing in this process can
+/// write `file` any more (its descriptors pointed away, or none left: a bag that never opened it, or whose
+/// close closed it); false when that cannot be known (no /proc) or the file is gone.
 bool abandonBag(std::unique_ptr<rosbag::Bag>* bag, const std::string& file)
 {
   static std::mutex mutex;
   static std::vector<rosbag::Bag*>* const abandoned = new std::vector<rosbag::Bag*>;  // never freed, see above
+  if (*bag)
   {
     std::lock_guard<std::mutex> lock(mutex);
     abandoned->push_back(bag->release());
@@ -826,7 +775,7 @@ bool abandonBag(std::unique_ptr<rosbag::Bag>* bag, const std::string& file)
   if (!fds)
     return false;
   const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
-  bool found = false;
+  bool safe = true;
   while (const dirent* entry = ::readdir(fds))
   {
     char* end = nullptr;
@@ -834,15 +783,29 @@ bool abandonBag(std::unique_ptr<rosbag::Bag>* bag, const std::string& file)
     struct stat info;
     // Only descriptors open for writing: rosbag opens the bag it writes read-write, and a reader of the
     // same file elsewhere in the manager (a localizer loading it) keeps its own.
-    if (null >= 0 && end != entry->d_name && *end == '\0' && fd != ::dirfd(fds) && fd != null &&
+    if (end != entry->d_name && *end == '\0' && fd != ::dirfd(fds) && fd != null &&
         ::fstat(static_cast<int>(fd), &info) == 0 && info.st_dev == target.st_dev &&
         info.st_ino == target.st_ino && (::fcntl(static_cast<int>(fd), F_GETFL) & O_ACCMODE) != O_RDONLY)
-      found = ::dup2(null, static_cast<int>(fd)) >= 0 || found;
+      safe = null >= 0 && ::dup2(null, static_cast<int>(fd)) >= 0 && safe;
   }
   ::closedir(fds);
   if (null >= 0)
     ::close(null);
-  return found;
+  return safe;
+}
+
+/// A rosbag::Bag on the heap (see abandonBag). Its constructor can throw too (rosbag 1.15 loads its
+/// encryption plugin there, which needs free descriptors): MapError, before any file is touched.
+std::unique_ptr<rosbag::Bag> newBag(const std::string& file)
+{
+  try
+  {
+    return std::unique_ptr<rosbag::Bag>(new rosbag::Bag);
+  }
+  catch (const std::exception& e)
+  {
+    throw MapError("cannot write map file " + inQuotes(file) + " (setting up rosbag failed: " + e.what() + ")");
+  }
 }
 
 /// What rosbag's append changes in a bag besides adding chunks: it cuts the index off (connection and
@@ -853,6 +816,7 @@ struct BagEnds
   std::string head;  // "#ROSBAG V2.0\n" and the file header record
   uint64_t index_pos = 0;
   std::string index;  // from index_pos to the end of the file
+  std::string chunks_start;  // the first KiB after the head: is the file still the one the ends are of?
 };
 
 /// The ends of the indexed bag at `path`; false when it is not one (then it cannot be put back).
@@ -897,6 +861,9 @@ bool readBagEnds(const std::string& path, BagEnds* ends)
   file.seekg(0);
   if (!file.read(&ends->head[0], head_size))
     return false;
+  ends->chunks_start.resize(static_cast<size_t>(std::min<uint64_t>(1024, index_pos - static_cast<uint64_t>(head_size))));
+  if (!file.read(&ends->chunks_start[0], static_cast<std::streamsize>(ends->chunks_start.size())))
+    return false;
   file.seekg(static_cast<std::streamoff>(index_pos));
   return static_cast<bool>(file.read(&ends->index[0], static_cast<std::streamsize>(ends->index.size())));
 }
@@ -917,15 +884,23 @@ bool writeAllAt(int fd, const std::string& bytes, uint64_t offset)
 }
 
 /// Puts the bag at `path`, whose append failed, back as it was before it: the chunks added cut off (which
-/// frees what they took of the disk), then the index and the file header as they were. Returns what
+/// frees what they took of the disk), then the index and the file header as they were. Only when it still
+/// holds the chunks it had (an append whose open fell back to emptying the file holds none). Returns what
 /// failed, or "".
 std::string putBackBagEnds(const std::string& path, const BagEnds& ends)
 {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+  const int fd = ::open(path.c_str(), O_RDWR | O_CLOEXEC);
   if (fd < 0)
     return std::string("opening it: ") + std::strerror(errno);
+  std::string chunks_start(ends.chunks_start.size(), '\0');
+  struct stat info;
   std::string problem;
-  if (::ftruncate(fd, static_cast<off_t>(ends.index_pos)) != 0)
+  if (::fstat(fd, &info) != 0 || static_cast<uint64_t>(info.st_size) < ends.index_pos ||
+      ::pread(fd, &chunks_start[0], chunks_start.size(), static_cast<off_t>(ends.head.size())) !=
+          static_cast<ssize_t>(chunks_start.size()) ||
+      chunks_start != ends.chunks_start)
+    problem = "it no longer holds the keyframes flushed before";
+  else if (::ftruncate(fd, static_cast<off_t>(ends.index_pos)) != 0)
     problem = std::string("cutting off the chunks added: ") + std::strerror(errno);
   else if (!writeAllAt(fd, ends.index, ends.index_pos) || !writeAllAt(fd, ends.head, 0))
     problem = std::string("writing its index again: ") + std::strerror(errno);
@@ -936,6 +911,62 @@ std::string putBackBagEnds(const std::string& path, const BagEnds& ends)
 }
 
 }  // namespace
+
+MapWriter::MapWriter(const std::string& path, const PreprocessingParams& params, const std::string& writer_info)
+  : path_(path), params_(params), writer_info_(writer_info)
+{
+  if (path_.empty())
+    throw MapError("no map file given (empty path)");
+  const std::string invalid = params_.validate();
+  if (!invalid.empty())
+    throw MapError("cannot record a map with invalid preprocessing parameters: " + invalid);
+  checkMapTarget(path_);
+  // Can it be written? The probe is removed again: a writer killed before its first flush leaves nothing.
+  std::unique_ptr<rosbag::Bag> probe = newBag(activePath());
+  try
+  {
+    probe->open(activePath(), rosbag::bagmode::Write);
+    probe->close();
+  }
+  catch (const std::exception& e)
+  {
+    abandonBag(&probe, activePath());
+    std::remove(activePath().c_str());
+    throw MapError("cannot write map file " + inQuotes(activePath()) + ": " + e.what());
+  }
+  std::remove(activePath().c_str());
+}
+
+MapWriter::~MapWriter()
+{
+  try
+  {
+    close();
+  }
+  catch (const std::exception& e)
+  {
+    ROS_ERROR_STREAM("Closing map " << inQuotes(path_) << " failed: " << e.what());
+  }
+}
+
+void MapWriter::add(const sensor_msgs::ImageConstPtr& keyframe, const KeyframeMotionConstPtr& motion)
+{
+  if (closed_)
+    throw MapError("map " + inQuotes(path_) + " is closed; no keyframes can be added");
+  if (!keyframe)
+    throw MapError("null keyframe");
+  if (!isMono8(keyframe->encoding))
+    throw MapError("keyframe has encoding '" + keyframe->encoding + "'; a map holds mono8 preprocessed images");
+  if (static_cast<int>(keyframe->width) != params_.output_width ||
+      static_cast<int>(keyframe->height) != params_.output_height ||
+      keyframe->data.size() < static_cast<size_t>(keyframe->step) * keyframe->height ||
+      keyframe->step < keyframe->width)
+    throw MapError("keyframe is " + std::to_string(keyframe->width) + "x" + std::to_string(keyframe->height) +
+                   " px (" + std::to_string(keyframe->data.size()) + " bytes), but the map's preprocessing makes " +
+                   std::to_string(params_.output_width) + "x" + std::to_string(params_.output_height) + " px");
+  pending_.push_back(keyframe);
+  pending_motion_.push_back(motion);
+}
 
 std::string MapWriter::roomProblem(uint64_t size, uint64_t added) const
 {
@@ -967,11 +998,16 @@ void MapWriter::flush()
   for (const sensor_msgs::ImageConstPtr& keyframe : pending_)
     needed += keyframe->data.size() + 1024;
   struct stat info;
+  if (!first && !fileExists(path_, &info) && fileExists(active, &info))
+    throw MapError("map file " + inQuotes(path_) + " is missing: an earlier flush failed and could not put it back; " +
+                   inQuotes(active) + " holds the keyframes flushed before (`rosbag reindex` recovers them), " +
+                   std::to_string(pending_.size()) + " more are buffered");
   const uint64_t size = (!first && fileExists(path_, &info)) ? static_cast<uint64_t>(info.st_size) : 0;
   const std::string no_room = roomProblem(size, needed);
   if (!no_room.empty())
     throw MapError("no room to write " + std::to_string(pending_.size()) + " keyframes to " + inQuotes(path_) + ": " +
                    no_room + "; the map as flushed is kept and the keyframes stay buffered");
+  std::unique_ptr<rosbag::Bag> bag = newBag(active);  // before any file is moved
   if (first && fileExists(path_, &info))
   {
     // A map from before under the same name: keep it under another name rather than overwrite it.
@@ -989,7 +1025,6 @@ void MapWriter::flush()
   const bool restorable = !first && readBagEnds(path_, &ends);
   if (!first && std::rename(path_.c_str(), active.c_str()) != 0)
     throw MapError("cannot move map file " + inQuotes(path_) + " to " + inQuotes(active) + ": " + std::strerror(errno));
-  std::unique_ptr<rosbag::Bag> bag(new rosbag::Bag);  // see abandonBag
   try
   {
     bag->open(active, first ? rosbag::bagmode::Write : rosbag::bagmode::Append);
@@ -1028,14 +1063,16 @@ void MapWriter::flush()
     // A disk that filled up since the room check, or an I/O error: the keyframes stay buffered, and the
     // map as flushed is put back under its final name.
     const std::string failed = "writing map file " + inQuotes(active) + " failed (" + e.what() + ")";
-    const bool abandoned = abandonBag(&bag, active);
+    const bool opened = bag->isOpen();  // false: its open failed before the file was opened, so untouched
+    const bool alone = abandonBag(&bag, active);
     const std::string kept = "the keyframes stay buffered";
     if (first)
     {
       std::remove(active.c_str());
       throw MapError(failed + "; nothing was written yet, " + kept);
     }
-    const std::string problem = !abandoned  ? std::string("the failed writer's descriptor was not found in /proc") :
+    const std::string problem = !opened     ? std::string() :
+                                !alone      ? std::string("the failed writer's descriptors were not found in /proc") :
                                 !restorable ? std::string("it was not an indexed bag before") :
                                               putBackBagEnds(active, ends);
     if (!problem.empty())
@@ -1067,9 +1104,10 @@ void MapWriter::writeOneConnectionPerTopic()
                            << no_room << "); it keeps one per flush, which reads the same");
     return;
   }
-  std::unique_ptr<rosbag::Bag> out(new rosbag::Bag);  // see abandonBag
+  std::unique_ptr<rosbag::Bag> out;
   try
   {
+    out = newBag(active);
     rosbag::Bag in(path_, rosbag::bagmode::Read);
     out->open(active, rosbag::bagmode::Write);
     // Bag times strictly increase (flush()), so time order is the map order. rosbag gives messages

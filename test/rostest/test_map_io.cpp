@@ -377,6 +377,77 @@ TEST_F(MapIoTest, ADiskThatFillsDuringTheFirstFlushLeavesNoFileAndLosesNoKeyfram
   EXPECT_EQ(40u, readMap(file).size());
 }
 
+// Out of descriptors, rosbag cannot even set up a bag (1.15 loads its encryption plugin in Bag's constructor,
+// which threw out of flush() after the map file had been moved aside, leaving it only under `.active`).
+TEST_F(MapIoTest, AFlushWithoutFreeDescriptorsKeepsTheMapUnderItsName)
+{
+  const std::string file = path("map.bag");
+  cv::RNG rng(9);
+  MapWriter writer(file, PreprocessingParams());
+  for (int k = 0; k < 4; ++k)
+    writer.add(keyframeMessage(randomKeyframe(rng), 10 + k));
+  writer.flush();
+  const std::string flushed = readAll(file);
+  for (int k = 0; k < 3; ++k)
+    writer.add(keyframeMessage(randomKeyframe(rng), 20 + k));
+  struct rlimit old_limit;
+  ASSERT_EQ(0, getrlimit(RLIMIT_NOFILE, &old_limit));
+  struct rlimit limit = old_limit;
+  limit.rlim_cur = 0;  // no new descriptor; those open stay usable
+  ASSERT_EQ(0, setrlimit(RLIMIT_NOFILE, &limit));
+  const std::string error = mapErrorOf([&] { writer.flush(); });
+  ASSERT_EQ(0, setrlimit(RLIMIT_NOFILE, &old_limit));
+  std::printf("the failed flush said: %s\n", error.c_str());
+  EXPECT_NE("", error);
+  EXPECT_TRUE(readAll(file) == flushed) << "the map file is not as it was flushed";
+  EXPECT_FALSE(exists(file + ".active"));
+  writer.flush();
+  EXPECT_EQ(7u, readMap(file).size());
+}
+
+TEST_F(MapIoTest, AWriterThatCannotProbeItsFileSaysSoAndLeavesNothing)
+{
+  const std::string file = path("map.bag");
+  std::string error;
+  {
+    FileSizeLimit limit(100);  // not even rosbag's 4 KiB file header fits
+    ASSERT_TRUE(limit.ok());
+    try
+    {
+      BlindMapWriter writer(file, PreprocessingParams());
+    }
+    catch (const MapError& e)
+    {
+      error = e.what();
+    }
+  }
+  std::fflush(nullptr);
+  EXPECT_NE(std::string::npos, error.find("cannot write map file")) << error;
+  EXPECT_FALSE(exists(file + ".active"));
+  EXPECT_EQ(0, descriptorsOn(file));
+}
+
+// After a flush that could not put the map back (here: its final name moved away by hand), each later flush
+// says where the keyframes flushed before are instead of failing to move a file that is not there.
+TEST_F(MapIoTest, AMapThatCouldNotBePutBackIsNamedAtEachLaterFlush)
+{
+  const std::string file = path("map.bag");
+  cv::RNG rng(10);
+  MapWriter writer(file, PreprocessingParams());
+  writer.add(keyframeMessage(randomKeyframe(rng), 10));
+  writer.flush();
+  ASSERT_EQ(0, std::rename(file.c_str(), (file + ".active").c_str()));
+  writer.add(keyframeMessage(randomKeyframe(rng), 11));
+  const std::string error = mapErrorOf([&] { writer.flush(); });
+  EXPECT_NE(std::string::npos, error.find("is missing")) << error;
+  EXPECT_NE(std::string::npos, error.find("rosbag reindex")) << error;
+  EXPECT_NE(std::string::npos, error.find("1 more are buffered")) << error;
+  EXPECT_EQ(1u, readMap(file + ".active").size());
+  ASSERT_EQ(0, std::rename((file + ".active").c_str(), file.c_str()));
+  writer.close();
+  EXPECT_EQ(2u, readMap(file).size());
+}
+
 // close() writes a map flushed more than once again, with one connection per topic, into `.active`; when
 // the disk fills during that, the map as flushed stays and nothing is left behind.
 TEST_F(MapIoTest, ADiskThatFillsWhileClosingKeepsTheMapAsFlushed)
