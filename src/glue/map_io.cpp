@@ -861,7 +861,8 @@ bool readBagEnds(const std::string& path, BagEnds* ends)
   file.seekg(0);
   if (!file.read(&ends->head[0], head_size))
     return false;
-  ends->chunks_start.resize(static_cast<size_t>(std::min<uint64_t>(1024, index_pos - static_cast<uint64_t>(head_size))));
+  const uint64_t chunks_bytes = index_pos - static_cast<uint64_t>(head_size);
+  ends->chunks_start.resize(static_cast<size_t>(std::min<uint64_t>(1024, chunks_bytes)));
   if (!file.read(&ends->chunks_start[0], static_cast<std::streamsize>(ends->chunks_start.size())))
     return false;
   file.seekg(static_cast<std::streamoff>(index_pos));
