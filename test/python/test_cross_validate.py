@@ -99,6 +99,15 @@ class CalibrationTest(unittest.TestCase):
         figures = cross_validate.figures_of(evaluate.evaluate(results, truth))
         self.assertAlmostEqual(figures["within_one"], 0.0)
         self.assertAlmostEqual(figures["within_one_reference"], 4 / 6)
+        self.assertAlmostEqual(figures["within_one_or_copy"], 0.0)  # 9 is no keyframe the teach camera stood at
+        # truth 0-5, the teach camera standing at keyframes 2-5 (each row names its keyframe standing); answers
+        # 0 1 2 3 2 2: queries 4 and 5 are 2 and 3 off, wrong, but at keyframe 2 of the same standing run
+        truth = {q: {"keyframe": q, "exact": None, "shift": None, "heading": None, "dark": False,
+                     "stationary": q >= 2, "keyframe_stationary": q >= 2} for q in range(6)}
+        results["keyframe"] = [0, 1, 2, 3, 2, 2]
+        figures = cross_validate.figures_of(evaluate.evaluate(results, truth))
+        self.assertAlmostEqual(figures["within_one"], 4 / 6)
+        self.assertAlmostEqual(figures["within_one_or_copy"], 1.0)
 
     def test_the_threshold_a_robot_could_ship_is_set_on_the_other_folds(self):
         # Folds 0 and 1 train, fold 2 is held out; one scenario, one run each, calibration off (slope 0).

@@ -296,6 +296,27 @@ class EvaluateEndToEndTest(unittest.TestCase):
         m, _, _ = self.score([self.results, "--identity"])
         self.assertNotIn("blind_reference", m)
 
+    def test_wrong_answers_at_another_copy_of_the_true_place(self):
+        # answers 0, 1, 5, 3, none, 6. The teach camera stood at keyframes 4-7 (rows naming them with
+        # keyframe_stationary 1). Query 2: truth 7, answer 5, two off: 5, 6, 7 all standing, a copy. Query 3:
+        # truth 6, answer 3: keyframe 3 is not standing, not a copy. Query 4: no answer. Query 5: right.
+        gt = os.path.join(self.tmp, "gt.csv")
+        write(gt, "query_index,keyframe,keyframe_stationary\n0,0,0\n1,1,0\n2,7,1\n3,6,1\n4,4,1\n5,5,1\n")
+        m, out, _ = self.score([self.results, "-g", gt])
+        self.assertEqual(m["copies"], {"wrong": 3, "wrong_at_copy": 1, "within_tolerance_or_copy": 4 / 6})
+        self.assertIn("the ground truth's frame alignment picks one): 1 of 3; within tolerance or at such a copy: "
+                      "0.667", out)
+        # keyframe 6 marked as not standing (query 3's row): the run from 5 to 7 is broken inside, no copy
+        write(gt, "query_index,keyframe,keyframe_stationary\n0,0,0\n1,1,0\n2,7,1\n3,6,0\n4,4,1\n5,5,1\n")
+        m, _, _ = self.score([self.results, "-g", gt])
+        self.assertEqual(m["copies"]["wrong_at_copy"], 0)
+        # keyframe 6 named by no row: not known to be standing either
+        write(gt, "query_index,keyframe,keyframe_stationary\n0,0,0\n1,1,0\n2,7,1\n3,8,1\n4,4,1\n5,5,1\n")
+        m, _, _ = self.score([self.results, "-g", gt])
+        self.assertEqual(m["copies"]["wrong_at_copy"], 0)
+        m, _, _ = self.score([self.results, "--identity"])
+        self.assertNotIn("copies", m)
+
     def test_tolerance_zero(self):
         m, _, _ = self.score([self.results, "--identity", "--tolerance", "0"])
         # hits now 0.9, 0.8, 0.4 (q5 is one off): precision 0, 1/2, 2/3, 2/4, 3/5 at recall 0, 1/6, 2/6, 2/6, 3/6
