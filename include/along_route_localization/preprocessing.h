@@ -4,6 +4,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -75,6 +76,12 @@ struct PreprocessingParams
 
   /// Empty when valid, otherwise a sentence naming the first invalid field and its allowed range.
   std::string validate() const;
+
+  /// Corrects the combinations validate() refuses that have one obvious fix, as the preprocessor nodelet
+  /// does for the panel and a parameter file: an even filter_window to the next odd one, and (patch
+  /// normalization) a patch_size that does not divide the output size to the largest one below it that does.
+  /// Each field within its range first. Returns one sentence per correction.
+  std::vector<std::string> correctCombinations();
 
   /// Stable one-line "key=value;..." text, stored in map files.
   std::string serialize() const;

@@ -879,6 +879,9 @@ bool applyParameterEntriesChecked(const std::string& path, const std::vector<Par
     if (!sentence.empty())
       warnings->push_back(path + ":" + std::to_string(entry.line) + ": " + sentence);
   }
+  // The combinations, corrected as the preprocessor nodelet corrects them from the same file.
+  for (const std::string& sentence : params.preprocessing.correctCombinations())
+    warnings->push_back(path + ": " + sentence);
   *preprocessing = params.preprocessing;
   *localizer = params.localizer;
   return true;

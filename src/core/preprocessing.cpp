@@ -87,6 +87,38 @@ std::string PreprocessingParams::validate() const
   return error.str();
 }
 
+std::vector<std::string> PreprocessingParams::correctCombinations()
+{
+  std::vector<std::string> corrections;
+  if (filter_window % 2 == 0)
+  {
+    corrections.push_back("filter_window " + std::to_string(filter_window) + " is even; using " +
+                          std::to_string(filter_window + 1));
+    filter_window += 1;
+  }
+  if (normalization == NormalizationMethod::kPatch && output_width > 0 && output_height > 0 && patch_size > 0)
+  {
+    int common = output_width;  // greatest common divisor of the output size
+    for (int other = output_height; other != 0;)
+    {
+      const int rest = common % other;
+      common = other;
+      other = rest;
+    }
+    if (common % patch_size != 0)
+    {
+      int divisor = std::min(patch_size, common);
+      while (common % divisor != 0)
+        --divisor;
+      corrections.push_back("patch_size " + std::to_string(patch_size) + " does not divide the output size " +
+                            std::to_string(output_width) + "x" + std::to_string(output_height) + "; using " +
+                            std::to_string(divisor));
+      patch_size = divisor;
+    }
+  }
+  return corrections;
+}
+
 std::string PreprocessingParams::serialize() const
 {
   std::ostringstream out;

@@ -76,22 +76,6 @@ private:
   std::set<std::string> enlarged_said_;  // the warnings about enlarged images logged so far
 };
 
-namespace
-{
-
-int greatestCommonDivisor(int a, int b)
-{
-  while (b != 0)
-  {
-    const int rest = a % b;
-    a = b;
-    b = rest;
-  }
-  return a;
-}
-
-}  // namespace
-
 void PreprocessorNodelet::onInit()
 {
   ros::NodeHandle& nh = getNodeHandle();
@@ -173,29 +157,16 @@ void PreprocessorNodelet::configCb(PreprocessorConfig& config, uint32_t /*level*
   // Corrections, so the panel shows the values in use: each value into its working range, then the
   // combinations.
   std::vector<std::string> corrections = correctToTable(config, last_valid_config_);
-  char sentence[256];
-  if (config.filter_window % 2 == 0)
-  {
-    std::snprintf(sentence, sizeof(sentence), "filter_window %d is even; using %d", config.filter_window,
-                  config.filter_window + 1);
-    corrections.push_back(sentence);
-    config.filter_window += 1;
-  }
-  const int common = greatestCommonDivisor(config.output_width, config.output_height);
-  if (config.normalization == "patch" && common % config.patch_size != 0)
-  {
-    int divisor = std::min(config.patch_size, common);
-    while (common % divisor != 0)
-      --divisor;
-    std::snprintf(sentence, sizeof(sentence), "patch_size %d does not divide the output size %dx%d; using %d",
-                  config.patch_size, config.output_width, config.output_height, divisor);
-    corrections.push_back(sentence);
-    config.patch_size = divisor;
-  }
   std::string invalid;
-  const PreprocessingParams params = toParams(config, &invalid);
+  PreprocessingParams params = toParams(config, &invalid);
   if (invalid.empty())
+  {
+    for (std::string& sentence : params.correctCombinations())
+      corrections.push_back(std::move(sentence));
+    config.filter_window = params.filter_window;
+    config.patch_size = params.patch_size;
     invalid = params.validate();
+  }
   const ConfigReview review = reviewConfig(config, last_valid_config_, std::move(corrections), invalid);
   logConfigReview(review, getName(), "preprocessing parameters");
   if (!review.rejected.empty())

@@ -361,6 +361,32 @@ TEST_F(ParameterFile, OneBadValueIsRefusedByNameAndTheGoodOnesAreUsed)
   EXPECT_NE(std::string::npos, error.find("'max_step' is already set on line 4")) << error;
 }
 
+// The preprocessor nodelet corrects an even filter_window and a patch_size that does not divide the image
+// from a launch file's parameter file; a parameter file given to localize_offline refused them (the same file).
+TEST_F(ParameterFile, CombinationsAreCorrectedAsTheNodeletCorrectsThem)
+{
+  std::ofstream(path_) << "preprocessor:\n  filter_window: 8\n  normalization: patch\n  output_width: 48\n"
+                          "  output_height: 36\n  patch_size: 8\n";
+  std::vector<arl::ParameterEntry> entries;
+  std::vector<std::string> warnings;
+  std::string error;
+  ASSERT_TRUE(arl::readParameterFile(path_, &entries, &error)) << error;
+  ASSERT_TRUE(arl::applyParameterEntriesChecked(path_, entries, &preprocessing_, &localizer_, &warnings, &error))
+      << error;
+  EXPECT_EQ(9, preprocessing_.filter_window);
+  EXPECT_EQ(6, preprocessing_.patch_size);  // 48 and 36 have the common divisors 1, 2, 3, 4, 6, 12
+  EXPECT_EQ("", preprocessing_.validate());
+  ASSERT_EQ(2u, warnings.size());
+  EXPECT_EQ(path_ + ": filter_window 8 is even; using 9", warnings[0]);
+  EXPECT_EQ(path_ + ": patch_size 8 does not divide the output size 48x36; using 6", warnings[1]);
+  // divisive normalization: the patch size is not used, so not corrected
+  arl::PreprocessingParams divisive;
+  divisive.output_width = 48;
+  divisive.output_height = 36;
+  EXPECT_TRUE(divisive.correctCombinations().empty());
+  EXPECT_EQ(8, divisive.patch_size);
+}
+
 TEST(ParameterTable, HelpShowsEachParameterWithDefaultRangeUnitAndMeaning)
 {
   const std::string help = arl::parameterHelp({ arl::ParameterGroup::kPreprocessor, arl::ParameterGroup::kLocalizer },

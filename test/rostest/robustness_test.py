@@ -452,6 +452,18 @@ class RobustnessTest(unittest.TestCase):
         self.camera.publish(again)
         self.wait_for_stamp(self.localizations, again.header.stamp, 'localizations with sky_fraction 0 again')
 
+    def test_an_even_filter_window_is_corrected_by_the_core_rule(self):
+        # The nodelet and localize_offline's parameter files share PreprocessingParams::correctCombinations.
+        preprocessor = ReconfigureClient('/repeat/preprocessor', timeout=30)
+        try:
+            corrected = preprocessor.update_configuration({'filter_window': 8})
+            self.assertEqual(corrected['filter_window'], 9)
+        finally:
+            preprocessor.update_configuration({'filter_window': 7})
+        again = self.good(14)
+        self.camera.publish(again)
+        self.wait_for_stamp(self.localizations, again.header.stamp, 'localizations with filter_window 7 again')
+
     def test_localizer_unloaded_and_loaded_again(self):
         unloaded = rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)('/repeat/localizer')
         self.assertTrue(unloaded.success)
