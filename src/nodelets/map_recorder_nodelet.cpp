@@ -1,6 +1,8 @@
 // Teach: picks keyframes from the preprocessed images and writes the route map (map_io.h) as it goes.
 //
-// Subscribes: image_preprocessed (mono8)
+// Subscribes: image_preprocessed (mono8), from the first time it records (at load with ~autostart, else
+//             at a ~start that succeeds; not while the map cannot be written): a play that waits for
+//             subscribers waits for a recorder that can record
 //             <namespace of image_preprocessed>/preprocessing_params (latched, from the preprocessor):
 //             stored in the map, so the map records exactly what made its keyframes
 //             odom (nav_msgs/Odometry, optional: only the min_distance policy reads it)
@@ -113,8 +115,16 @@ private:
   double flush_period_s_ = 1.0;
   size_t max_queue_ = 1000;
 
+  /// Subscribes to the preprocessed images, once: when the recorder first records (at load with ~autostart,
+  /// else at a ~start that succeeds). A recorder that cannot or may not record yet does not pull frames, so
+  /// `rosbag play --wait-for-subscribers` waits for it instead of playing the teach into the void.
+  void subscribeImages();
+
   std::shared_ptr<image_transport::ImageTransport> it_;
+  std::mutex image_sub_mutex_;  // onInit, startCb
   image_transport::Subscriber image_sub_;
+  std::string image_topic_;  // resolved in onInit
+  uint32_t image_queue_size_ = 100;
   ros::Subscriber params_sub_, odom_sub_, motion_sub_;
   std::string motion_topic_;
   ros::ServiceServer start_srv_, pause_srv_, finish_srv_;
@@ -188,7 +198,7 @@ void MapRecorderNodelet::onInit()
   map_path_ = readStringParameter(private_nh, "map", std::string(), &problem);
   if (!problem.empty())
     NODELET_ERROR("%s", problem.c_str());
-  const bool autostart = readBoolParameter(private_nh, "autostart", true, &problem);
+  bool autostart = readBoolParameter(private_nh, "autostart", true, &problem);
   if (!problem.empty())
     NODELET_ERROR("%s", problem.c_str());
   flush_period_s_ = readDoubleParameter(private_nh, "flush_period", flush_period_s_, &problem);
@@ -240,9 +250,11 @@ void MapRecorderNodelet::onInit()
   }
   catch (const MapError& e)
   {
-    // Said now rather than at the first keyframe; the services still answer, with this error.
-    NODELET_ERROR("Nothing will be recorded: %s", e.what());
+    // Said now rather than at the first keyframe; the services still answer, with this error. Not recording
+    // (whatever ~autostart says) until a ~start finds the target fixed.
+    NODELET_ERROR("Nothing will be recorded until ~start succeeds: %s", e.what());
     writer_error_ = e.what();
+    autostart = false;
   }
   struct stat existing;
   if (writer_error_.empty() && ::stat(map_path_.c_str(), &existing) == 0)
@@ -254,6 +266,9 @@ void MapRecorderNodelet::onInit()
   }
   writer_thread_ = std::thread(&MapRecorderNodelet::writerLoop, this);
 
+  it_ = std::make_shared<image_transport::ImageTransport>(nh);
+  image_topic_ = nh.resolveName("image_preprocessed");
+  image_queue_size_ = static_cast<uint32_t>(std::max(1, queue_size));
   start_srv_ = private_nh.advertiseService("start", &MapRecorderNodelet::startCb, this);
   pause_srv_ = private_nh.advertiseService("pause", &MapRecorderNodelet::pauseCb, this);
   finish_srv_ = private_nh.advertiseService("finish", &MapRecorderNodelet::finishCb, this);
@@ -269,10 +284,8 @@ void MapRecorderNodelet::onInit()
     motion_sub_ = nh.subscribe("motion", 100, &MapRecorderNodelet::motionTwistCb, this);
   else if (motion_type == MotionType::kOdometry)
     motion_sub_ = nh.subscribe("motion", 100, &MapRecorderNodelet::motionOdomCb, this);
-  it_ = std::make_shared<image_transport::ImageTransport>(nh);
-  const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh);
-  image_sub_ = it_->subscribe("image_preprocessed", static_cast<uint32_t>(std::max(1, queue_size)),
-                              &MapRecorderNodelet::imageCb, this, hints);
+  if (autostart)
+    subscribeImages();
   diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
   NODELET_INFO("Recording %s into map %s (%s); preprocessing parameters from %s",
                nh.resolveName("image_preprocessed").c_str(), map_path_.c_str(),
@@ -580,7 +593,7 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
     stat.summary(refused_.lastKind() == kNoParameters ? DiagnosticStatus::WARN : DiagnosticStatus::ERROR,
                  "not recording the frames: " + refused_.lastReason());
   else if (frames_seen_ == 0)
-    stat.summary(DiagnosticStatus::WARN, "recording, waiting for images on " + image_sub_.getTopic());
+    stat.summary(DiagnosticStatus::WARN, "recording, waiting for images on " + image_topic_);
   else
     stat.summary(DiagnosticStatus::OK, "recording: " + keyframes);
   stat.add("map", map_path_.empty() ? std::string("(none)") : map_path_);
@@ -593,6 +606,15 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
   stat.add("motion messages", motion_messages_);
   stat.add("keyframes with motion", keyframes_with_motion_);
   refused_.addTo(stat, "frame");
+}
+
+void MapRecorderNodelet::subscribeImages()
+{
+  std::lock_guard<std::mutex> lock(image_sub_mutex_);
+  if (image_sub_)
+    return;
+  const image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
+  image_sub_ = it_->subscribe("image_preprocessed", image_queue_size_, &MapRecorderNodelet::imageCb, this, hints);
 }
 
 bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::Trigger::Response& res)
@@ -643,6 +665,7 @@ bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::
                                                             "started recording ") +
                   map_path_;
     state_ = State::kRecording;
+    subscribeImages();
   }
   if (res.success)
     NODELET_INFO("~start: %s", res.message.c_str());

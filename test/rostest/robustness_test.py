@@ -199,13 +199,21 @@ class RobustnessTest(unittest.TestCase):
 
     def test_a_recorder_whose_map_folder_is_missing_refuses_to_start(self):
         # The folder was found missing only at the first keyframe: ~start said success and the whole teach
-        # was lost. ~start now refuses, naming the folder; once it exists, recording starts.
+        # was lost. ~start now refuses, naming the folder; once it exists, recording starts. Nor does the
+        # recorder subscribe to its images before then (with ~autostart too): a `rosbag play
+        # --wait-for-subscribers` played the whole teach into it while it could not record.
         name = '/repeat/nofolder_recorder'
         folder = os.path.join(self.tmp, 'not_yet')
         path = os.path.join(folder, 'map.bag')
-        self.load_recorder(name, {'map': path, 'autostart': False})
+        topic = '/nofolder_test/image_preprocessed'
+        frames = rospy.Publisher(topic, Image, queue_size=1)
+        self.load_recorder(name, {'map': path}, topic, records=False)
         try:
             fx.wait_for_service(name + '/start')
+            text = "Nothing will be recorded until ~start succeeds: the folder '%s' of map file" % folder
+            fx.wait_for(lambda: self.rosout.matching(text, Log.ERROR), 10, 'a message starting %r' % text)
+            time.sleep(1.0)
+            self.assertEqual(frames.get_num_connections(), 0, 'a recorder that cannot record subscribed')
             refused = rospy.ServiceProxy(name + '/start', Trigger)()
             self.assertFalse(refused.success, refused.message)
             self.assertEqual(refused.message, "cannot record %s: the folder '%s' of map file '%s' does not exist; "
@@ -213,7 +221,8 @@ class RobustnessTest(unittest.TestCase):
             os.makedirs(folder)
             started = rospy.ServiceProxy(name + '/start', Trigger)()
             self.assertTrue(started.success, started.message)
-            self.assertEqual(started.message, 'started recording ' + path)
+            self.assertEqual(started.message, 'started recording ' + path)  # it said "already recording"
+            fx.wait_for(lambda: frames.get_num_connections() > 0, 10, 'the recorder to subscribe once started')
             again = rospy.ServiceProxy(name + '/start', Trigger)()  # it said "started" again
             self.assertEqual((again.success, again.message), (True, 'already recording ' + path))
         finally:
@@ -303,7 +312,7 @@ class RobustnessTest(unittest.TestCase):
             name = '/repeat/autostart_recorder'
             try:
                 self.load_recorder(name, {'map': os.path.join(self.tmp, 'autostart_map.bag'), 'autostart': given},
-                                   '/autostart_test/image_preprocessed')
+                                   '/autostart_test/image_preprocessed', records=given != 0)
                 status = self.diagnostics.next_status('repeat/autostart_recorder: recording', lambda s: True,
                                                       'the recorder to report (autostart %r)' % given)
                 self.assertEqual(status.message, state)
@@ -479,11 +488,12 @@ class RobustnessTest(unittest.TestCase):
         self.assertTrue(rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(self.map_path).success)
         self.drive_teach_frames(self.localizations, 'localizations from the reloaded localizer', count=20)
 
-    def load_recorder(self, name, params, topic=None, seed=0):
+    def load_recorder(self, name, params, topic=None, seed=0, records=True):
         """Loads a map recorder `name` into the running manager with the private parameters `params` (`map`
         among them). With `topic`, it records that topic instead of /repeat/image_preprocessed (frames a test
         stamps as it likes then reach no localizer), the repeat preprocessor's parameters announced beside
-        it; it returns a function that publishes a random 64x32 mono8 frame there at a stamp (s)."""
+        it; it returns a function that publishes a random 64x32 mono8 frame there at a stamp (s). A recorder
+        subscribes to its images once it records (`records`: at load)."""
         for key, value in params.items():
             rospy.set_param(name + '/' + key, value)
         remap_from, remap_to = [], []
@@ -500,7 +510,8 @@ class RobustnessTest(unittest.TestCase):
         self.assertTrue(loaded.success)
         if not topic:
             return None
-        fx.wait_for(lambda: frames.get_num_connections() > 0, 10, 'the recorder to subscribe')
+        if records:
+            fx.wait_for(lambda: frames.get_num_connections() > 0, 10, 'the recorder to subscribe')
         rng = np.random.RandomState(seed)
 
         def publish(stamp):

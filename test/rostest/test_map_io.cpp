@@ -381,6 +381,11 @@ TEST_F(MapIoTest, ADiskThatFillsDuringTheFirstFlushLeavesNoFileAndLosesNoKeyfram
 // which threw out of flush() after the map file had been moved aside, leaving it only under `.active`).
 TEST_F(MapIoTest, AFlushWithoutFreeDescriptorsKeepsTheMapUnderItsName)
 {
+#if defined(__SANITIZE_ADDRESS__)
+  // UBSan's check of the exception's type opens a pipe to read memory, and with no descriptor it reports an
+  // invalid vptr; the plain build runs this test (the sanitizers stage runs the others).
+  GTEST_SKIP() << "needs a process that can run without free descriptors; not under ASan + UBSan";
+#endif
   const std::string file = path("map.bag");
   cv::RNG rng(9);
   MapWriter writer(file, PreprocessingParams());
