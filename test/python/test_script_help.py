@@ -52,6 +52,20 @@ class ScriptHelpTest(unittest.TestCase):
                 self.assertEqual(done.returncode, 0, done.stderr)
                 self.assertIn('usage', done.stdout.lower())
 
+    def test_output_into_a_closed_pipe_ends_quietly(self):
+        # `evaluate ... | head -3` printed a BrokenPipeError traceback. The reader here closes before the script
+        # writes: it ends as `head` expects a Unix filter to (SIGPIPE), with nothing on stderr.
+        for name in PYTHON_SCRIPTS:
+            with self.subTest(script=name), tempfile.TemporaryDirectory() as folder:
+                env = dict(os.environ, HOME=folder, PATH='/usr/bin:' + os.environ.get('PATH', ''))
+                process = subprocess.Popen(['/usr/bin/python3', os.path.join(SCRIPTS_DIR, name), '--help'], cwd=folder,
+                                           env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                           universal_newlines=True)
+                process.stdout.close()
+                _, err = process.communicate(timeout=60)
+                self.assertNotIn('BrokenPipeError', err)
+                self.assertIn(process.returncode, (0, -13), err)  # -13: ended by SIGPIPE
+
     def test_every_python_script_is_installed(self):
         # The scripts run and load each other from their own folder: run_evaluation runs cross_validate,
         # which was not installed.
