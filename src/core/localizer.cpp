@@ -93,7 +93,8 @@ std::string LocalizerParams::validateForImages(const PreprocessingParams& images
   const int width = images.output_width;
   const int compared_rows = images.output_height - along_route_localization::firstComparedRow(images);
   if (2 * max_shift_px >= width)
-    return "max_shift_px must be below half the image width (" + std::to_string(width) + " px)";
+    return "max_shift_px must be below half the image width (at most " + std::to_string((width - 1) / 2) +
+           " for " + std::to_string(width) + " px)";
   if (shift_bands > compared_rows)
     return "shift_bands must be at most the compared rows (" + std::to_string(compared_rows) + "), got " +
            std::to_string(shift_bands);

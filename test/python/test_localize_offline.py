@@ -162,7 +162,7 @@ class LocalizeOfflineTest(unittest.TestCase):
                              (['--set', 'no_such_parameter=1'], "unknown parameter 'no_such_parameter'"),
                              (['--method', 'hmm'], '--method must be dtw or seqslam'),
                              (['--params', '/no/such/params.yaml'], '/no/such/params.yaml'),
-                             (['--set', 'max_shift_px=40'], 'max_shift_px must be below half the image width (64 px)'),
+                             (['--set', 'max_shift_px=40'], 'max_shift_px must be below half the image width (at most 31 for 64 px)'),
                              (['--set', 'sky_fraction=0.9', '--set', 'shift_bands=4'],
                               'shift_bands must be at most the compared rows (3), got 4')):
             check = self.run_runner('--check-params', *args)
