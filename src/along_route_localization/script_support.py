@@ -3,6 +3,7 @@
 - the Nordland seasons (other_season) and where the frames are by default (nordland_data_dir)
 - whether a path lies inside a folder (inside_folder) and whether a ROS topic name is one a bag can hold
 - one script loaded from another as a module (load_script)
+- how every script ends (run_main): quietly when its output goes into a pipe that closed early (`| head`)
 - the steps run_evaluation and cross_validate share: running a command (run, EvaluationError), finding
   localize_offline, checking the data and the output folder, seed lists, and cross_validate's candidate
   settings (parse_candidates, check_candidates), which run_evaluation checks before anything is written
@@ -17,9 +18,26 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 import time
 
 SEASONS = ("summer", "winter")
+
+
+def run_main(main, *args):
+    """Runs a script's main(*args) and exits with what it returns. Output into a pipe whose reader has gone
+    (`evaluate ... | head -3`) ends it with status 141 (128 + SIGPIPE, as a Unix filter ends) and nothing on
+    stderr, instead of a BrokenPipeError traceback. Not by SIGPIPE itself: the script's own `finally` blocks
+    still run (run_closed_loop stops the roscore and launches it started, others remove temporary folders)."""
+    try:
+        try:
+            status = main(*args)
+        finally:
+            sys.stdout.flush()  # inside the try: a closed pipe fails here, not at the interpreter's exit
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # what is still buffered goes nowhere
+        status = 141
+    sys.exit(status)
 
 
 def other_season(season):

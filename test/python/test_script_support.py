@@ -3,6 +3,7 @@ on cases worked out by hand."""
 
 import os
 import stat
+import subprocess
 import sys
 import tempfile
 import unittest
@@ -36,6 +37,41 @@ class TestResultsTest(unittest.TestCase):
             # tests: 3 + 2 (gtest suites) + 1 (the node's error) + 6 + 1 (the crashed wrapper) + 1 + 1
             # failed: 1 + 1 + 1 + 1 (MISSING) + 1 (does not parse); skipped: 1 (disabled) + 2
             self.assertEqual(script_support.count_test_results(tmp), (15, 5, 3))
+
+
+class RunMainTest(unittest.TestCase):
+    """run_main: into a closed pipe a script ends with 141 and no traceback, its own `finally` blocks run
+    (setting SIGPIPE's default action instead left run_closed_loop's roscore and launches running)."""
+
+    def run_script(self, body, folder):
+        script = os.path.join(folder, 'script.py')
+        with open(script, 'w') as f:
+            f.write('import sys\nsys.path.insert(0, %r)\nfrom along_route_localization.script_support import run_main\n'
+                    '%s\nrun_main(main)\n' % (os.path.join(os.path.dirname(script_support.__file__), '..'), body))
+        process = subprocess.Popen([sys.executable, script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                   universal_newlines=True)
+        process.stdout.close()  # the reader is gone before the script writes
+        _, err = process.communicate(timeout=30)
+        return process.returncode, err
+
+    def test_a_closed_pipe_ends_the_script_after_its_finally_blocks(self):
+        with tempfile.TemporaryDirectory() as folder:
+            marker = os.path.join(folder, 'cleaned')
+            body = ('def main():\n    try:\n        for i in range(100000):\n            print("line", i)\n'
+                    '        return 0\n    finally:\n        open(%r, "w").close()\n' % marker)
+            status, err = self.run_script(body, folder)
+            self.assertEqual(status, 141, err)
+            self.assertEqual(err, '')
+            self.assertTrue(os.path.exists(marker), 'the finally block did not run')
+
+    def test_a_status_and_a_systemexit_pass_through(self):
+        with tempfile.TemporaryDirectory() as folder:
+            self.assertEqual(self.run_script('def main():\n    return 3\n', folder), (3, ''))
+            status, err = self.run_script('def main():\n    sys.exit("refused")\n', folder)
+            self.assertEqual((status, err.strip()), (1, 'refused'))
+            status, err = self.run_script('def main():\n    raise ValueError("a bug")\n', folder)
+            self.assertEqual(status, 1)
+            self.assertIn('ValueError: a bug', err)  # other errors keep their traceback
 
 
 class SeasonTest(unittest.TestCase):
