@@ -639,7 +639,7 @@ bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::
       target_error = e.what();
     }
   }
-  std::lock_guard<std::mutex> lock(queue_mutex_);
+  std::unique_lock<std::mutex> lock(queue_mutex_);
   if (nothing_taken && keyframes_queued_ == 0)
     writer_error_ = target_error;  // before any keyframe, only the target can have failed
   if (map_path_.empty())
@@ -665,12 +665,17 @@ bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::
                                                             "started recording ") +
                   map_path_;
     state_ = State::kRecording;
-    subscribeImages();
   }
+  lock.unlock();  // subscribing talks to the master: not while the writer thread and ~finish wait for the lock
   if (res.success)
+  {
+    subscribeImages();
     NODELET_INFO("~start: %s", res.message.c_str());
+  }
   else
+  {
     NODELET_ERROR("~start: %s", res.message.c_str());
+  }
   return true;
 }
 
