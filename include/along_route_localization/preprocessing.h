@@ -79,8 +79,9 @@ struct PreprocessingParams
 
   /// Corrects the combinations validate() refuses that have one obvious fix, as the preprocessor nodelet
   /// does for the panel and a parameter file: an even filter_window to the next odd one, and (patch
-  /// normalization) a patch_size that does not divide the output size to the largest one below it that does.
-  /// Each field within its range first. Returns one sentence per correction.
+  /// normalization) a patch_size that does not divide the output size to the largest one below it that does
+  /// (none of at least 2, as for 65x48: left for validate() to refuse). Each field within its range first.
+  /// Returns one sentence per correction.
   std::vector<std::string> correctCombinations();
 
   /// Stable one-line "key=value;..." text, stored in map files.

@@ -107,13 +107,17 @@ std::vector<std::string> PreprocessingParams::correctCombinations()
     }
     if (common % patch_size != 0)
     {
+      // The largest common divisor below it; none of at least 2 (patch_size's least): validate() refuses.
       int divisor = std::min(patch_size, common);
       while (common % divisor != 0)
         --divisor;
-      corrections.push_back("patch_size " + std::to_string(patch_size) + " does not divide the output size " +
-                            std::to_string(output_width) + "x" + std::to_string(output_height) + "; using " +
-                            std::to_string(divisor));
-      patch_size = divisor;
+      if (divisor >= 2)
+      {
+        corrections.push_back("patch_size " + std::to_string(patch_size) + " does not divide the output size " +
+                              std::to_string(output_width) + "x" + std::to_string(output_height) + "; using " +
+                              std::to_string(divisor));
+        patch_size = divisor;
+      }
     }
   }
   return corrections;

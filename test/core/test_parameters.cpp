@@ -385,6 +385,14 @@ TEST_F(ParameterFile, CombinationsAreCorrectedAsTheNodeletCorrectsThem)
   divisive.output_height = 36;
   EXPECT_TRUE(divisive.correctCombinations().empty());
   EXPECT_EQ(8, divisive.patch_size);
+  // 65x48 have no common divisor but 1, below patch_size's least (2): not corrected, refused by validate()
+  arl::PreprocessingParams coprime = divisive;
+  coprime.normalization = arl::NormalizationMethod::kPatch;
+  coprime.output_width = 65;
+  coprime.output_height = 48;
+  EXPECT_TRUE(coprime.correctCombinations().empty());
+  EXPECT_EQ(8, coprime.patch_size);
+  EXPECT_NE(std::string::npos, coprime.validate().find("patch_size must divide")) << coprime.validate();
 }
 
 TEST(ParameterTable, HelpShowsEachParameterWithDefaultRangeUnitAndMeaning)
