@@ -323,8 +323,8 @@ int main(int argc, char** argv)
       std::cout << "localize_offline: the parameters are valid\n";
     else
       std::cout << "localize_offline: a run takes these parameters, with the " << refused.size()
-                << (refused.size() == 1 ? " entry" : " entries") << " of " << params_path
-                << " warned of above corrected or skipped\n";
+                << (refused.size() == 1 ? " warning" : " warnings") << " above about " << params_path
+                << " (values corrected, entries skipped)\n";
     return 0;
   }
   // No output may replace an input or the other output (a results file written over the query bag lost

@@ -178,8 +178,17 @@ class LocalizeOfflineTest(unittest.TestCase):
         corrected = self.run_runner('--check-params', '--params', params)
         self.assertEqual(corrected.returncode, 0, corrected.stderr)
         self.assertIn('max_step 99 is outside 1 .. 16', corrected.stderr)
-        self.assertIn('with the 2 entries of %s warned of above corrected or skipped' % params, corrected.stdout)
+        self.assertIn('with the 2 warnings above about %s (values corrected, entries skipped)' % params,
+                      corrected.stdout)
         self.assertNotIn('valid', corrected.stdout)
+        # an even filter_window, corrected as the preprocessor nodelet corrects it from the same file (refused
+        # before: the robot's params file could not be checked or used offline)
+        with open(params, 'w') as f:
+            f.write('preprocessor:\n  filter_window: 8\n')
+        corrected = self.run_runner('--check-params', '--params', params)
+        self.assertEqual(corrected.returncode, 0, corrected.stderr)
+        self.assertIn('%s: filter_window 8 is even; using 9' % params, corrected.stderr)
+        self.assertIn('with the 1 warning above about', corrected.stdout)
         # it reads no input: given one, it says so rather than ignoring it
         self.assertFails(self.run_runner('--check-params', '--map', self.map_dir), 'reads no map, query or output')
 
