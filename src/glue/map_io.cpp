@@ -884,6 +884,8 @@ bool writeAllAt(int fd, const std::string& bytes, uint64_t offset)
   return true;
 }
 
+constexpr char kFlushedKeyframesGone[] = "it no longer holds the keyframes flushed before";
+
 /// Puts the bag at `path`, whose append failed, back as it was before it: the chunks added cut off (which
 /// frees what they took of the disk), then the index and the file header as they were. Only when it still
 /// holds the chunks it had (an append whose open fell back to emptying the file holds none). Returns what
@@ -900,7 +902,7 @@ std::string putBackBagEnds(const std::string& path, const BagEnds& ends)
       ::pread(fd, &chunks_start[0], chunks_start.size(), static_cast<off_t>(ends.head.size())) !=
           static_cast<ssize_t>(chunks_start.size()) ||
       chunks_start != ends.chunks_start)
-    problem = "it no longer holds the keyframes flushed before";
+    problem = kFlushedKeyframesGone;
   else if (::ftruncate(fd, static_cast<off_t>(ends.index_pos)) != 0)
     problem = std::string("cutting off the chunks added: ") + std::strerror(errno);
   else if (!writeAllAt(fd, ends.index, ends.index_pos) || !writeAllAt(fd, ends.head, 0))
@@ -1000,9 +1002,9 @@ void MapWriter::flush()
     needed += keyframe->data.size() + 1024;
   struct stat info;
   if (!first && !fileExists(path_, &info) && fileExists(active, &info))
-    throw MapError("map file " + inQuotes(path_) + " is missing: an earlier flush failed and could not put it back; " +
-                   inQuotes(active) + " holds the keyframes flushed before (`rosbag reindex` recovers them), " +
-                   std::to_string(pending_.size()) + " more are buffered");
+    throw MapError("map file " + inQuotes(path_) + " is missing: an earlier flush failed (said then); " +
+                   inQuotes(active) + " holds what was flushed before (if it does not open, `rosbag reindex` may "
+                   "recover it), " + std::to_string(pending_.size()) + " more are buffered");
   const uint64_t size = (!first && fileExists(path_, &info)) ? static_cast<uint64_t>(info.st_size) : 0;
   const std::string no_room = roomProblem(size, needed);
   if (!no_room.empty())
@@ -1073,12 +1075,14 @@ void MapWriter::flush()
       throw MapError(failed + "; nothing was written yet, " + kept);
     }
     const std::string problem = !opened     ? std::string() :
-                                !alone      ? std::string("the failed writer's descriptors were not found in /proc") :
+                                !alone      ? std::string("the failed writer's descriptors could not be set aside") :
                                 !restorable ? std::string("it was not an indexed bag before") :
                                               putBackBagEnds(active, ends);
+    if (problem == kFlushedKeyframesGone)
+      throw MapError(failed + "; " + inQuotes(active) + " " + problem + ": they are lost, " + kept);
     if (!problem.empty())
       throw MapError(failed + "; putting it back as flushed failed (" + problem + "): " + inQuotes(active) +
-                     " holds the keyframes flushed so far (`rosbag reindex` recovers them), " + kept);
+                     " holds the keyframes flushed so far (`rosbag reindex` may recover them), " + kept);
     if (std::rename(active.c_str(), path_.c_str()) != 0)
       throw MapError(failed + "; the map as flushed is back in " + inQuotes(active) + " but renaming it to " +
                      inQuotes(path_) + " failed (" + std::strerror(errno) + "), " + kept);
