@@ -12,6 +12,7 @@
 //
 // Times are ROS time (sim time with /clock): a localization counts when it is received, so the watchdog
 // sees a localizer that stopped, whatever stamps its camera gave.
+#include <cctype>
 #include <cmath>
 #include <map>
 #include <functional>
@@ -248,6 +249,29 @@ void RouteFollowerNodelet::localizationCb(const LocalizationConstPtr& msg)
     NODELET_INFO("End of the route at keyframe %d of %zu: stopping", msg->keyframe, follower_->keyframes());
 }
 
+namespace
+{
+
+/// The text with each number in it (digits, with a point inside) replaced by '#'.
+std::string withoutNumbers(const std::string& text)
+{
+  std::string out;
+  for (size_t i = 0; i < text.size(); ++i)
+  {
+    const bool digit = std::isdigit(static_cast<unsigned char>(text[i])) != 0;
+    const bool inner_point = text[i] == '.' && i > 0 && i + 1 < text.size() &&
+                             std::isdigit(static_cast<unsigned char>(text[i - 1])) &&
+                             std::isdigit(static_cast<unsigned char>(text[i + 1]));
+    if (!digit && !inner_point)
+      out += text[i];
+    else if (out.empty() || out.back() != '#')
+      out += '#';
+  }
+  return out;
+}
+
+}  // namespace
+
 void RouteFollowerNodelet::controlCb(const ros::TimerEvent& /*event*/)
 {
   if (!follower_)
@@ -257,7 +281,10 @@ void RouteFollowerNodelet::controlCb(const ros::TimerEvent& /*event*/)
   const std::string reason_before = follower_->reason();
   // A gap of more than two control periods (a clock that jumped ahead, a stalled manager) ramps as two.
   last_command_ = follower_->command(ros::Time::now().toSec(), 2.0 / control_rate_hz_);
-  if (follower_->reason() != reason_before && follower_->state() == RouteFollower::State::kFollowing)
+  // Said when the reason changes, not when a number in it does (the seconds without a localization, the
+  // metres crept: once per control tick, 20 lines a second into the log).
+  if (withoutNumbers(follower_->reason()) != withoutNumbers(reason_before) &&
+      follower_->state() == RouteFollower::State::kFollowing)
   {
     if (follower_->safetyScale() < 1.0)
       NODELET_WARN("%s", follower_->reason().c_str());

@@ -8,6 +8,7 @@ dynamic_reconfigure, and a map without taught motion refused with a clear error.
 import os
 import shutil
 import threading
+import time
 import unittest
 
 import rosbag
@@ -101,6 +102,7 @@ class FollowTest(unittest.TestCase):
         cls.map_odom_path = rospy.get_param('~map_odom')
         cls.map_manual_path = rospy.get_param('~map_manual')
         cls.diagnostics = fx.DiagnosticsCollector()
+        cls.rosout = fx.RosoutCollector()
         cls.commands = fx.Collector('/follow/cmd_vel', Twist, queue_size=10000)
         cls.localizations = Repeater('/follow/localization', Localization, 10.0)
 
@@ -253,10 +255,14 @@ class FollowTest(unittest.TestCase):
         self.drive('speed_factor 1 again')
 
         # Watchdog: localizations stop coming, the robot stops; they come again, it drives again.
+        said_before = len(self.rosout.matching('stopped: no localization for'))
         self.localizations.set(None)
         self.wait_for_command(0.0, 0.0, 'watchdog')
         stopped = self.status(lambda s: 'no localization' in s.message, 'the watchdog in the diagnostics')
         self.assertEqual(fx.status_values(stopped)['state'], 'following')
+        time.sleep(1.0)  # 20 control ticks: the warning, whose seconds grow each tick, was logged at each
+        said = self.rosout.matching('stopped: no localization for')[said_before:]
+        self.assertEqual(len(said), 1, [m.msg for m in said])
         self.drive('localizations again')
 
         # Lost with the camera covered (a featureless view): stop at once, no creep.
