@@ -358,10 +358,12 @@ std::vector<ParameterSpec> makeTable()
   t.push_back(user(numberRow("max_linear_accel", fol, 0.001, 100, "m/s^2",
                              "Bound of the rise of the forward speed (speeding up)",
                              FIELD(follower.max_linear_accel))));
-  t.push_back(user(numberRow("max_linear_decel", fol, 0.001, 100, "m/s^2",
+  // At least 0.1: a stop (~stop, the watchdog, lost) is bounded by them; at 0.001 m/s^2 a robot at 1 m/s
+  // took 1000 s to stop after ~stop.
+  t.push_back(user(numberRow("max_linear_decel", fol, 0.1, 100, "m/s^2",
                              "Bound of the slowing of the forward speed (braking, a stop)",
                              FIELD(follower.max_linear_decel))));
-  t.push_back(user(numberRow("max_angular_accel", fol, 0.001, 100, "rad/s^2", "Bound of the change of the turn rate",
+  t.push_back(user(numberRow("max_angular_accel", fol, 0.1, 100, "rad/s^2", "Bound of the change of the turn rate",
                              FIELD(follower.max_angular_accel))));
   return t;
 }

@@ -318,6 +318,12 @@ TEST(ParameterTable, CheckedValuesAreCorrectedIntoTheRangeOrRefusedByName)
   EXPECT_EQ(10, params.localizer.ring_buffer_rows);
   EXPECT_EQ("sky_fraction 1.5 is outside 0 .. 0.95; using 0.95", arl::setParameterChecked("sky_fraction", "1.5", &params));
   EXPECT_DOUBLE_EQ(0.95, params.preprocessing.sky_fraction);
+  // A stop is bounded: with max_linear_decel 0.001 (taken before) ~stop left a robot at 1 m/s for 1000 s.
+  EXPECT_EQ("max_linear_decel 0.001 is outside 0.1 .. 100 m/s^2; using 0.1",
+            arl::setParameterChecked("max_linear_decel", "0.001", &params));
+  EXPECT_DOUBLE_EQ(0.1, params.follower.max_linear_decel);
+  EXPECT_EQ("max_angular_accel 0.01 is outside 0.1 .. 100 rad/s^2; using 0.1",
+            arl::setParameterChecked("max_angular_accel", "0.01", &params));
   // Refused: the value stays what it was.
   EXPECT_EQ("method 'DTW' is not one of dtw | seqslam; keeping dtw",
             arl::setParameterChecked("method", "DTW", &params, &refused));
