@@ -28,7 +28,8 @@ def run_main(main, *args):
     """Runs a script's main(*args) and exits with what it returns. Output into a pipe whose reader has gone
     (`evaluate ... | head -3`) ends it with status 141 (128 + SIGPIPE, as a Unix filter ends) and nothing on
     stderr, instead of a BrokenPipeError traceback. Not by SIGPIPE itself: the script's own `finally` blocks
-    still run (run_closed_loop stops the roscore and launches it started, others remove temporary folders)."""
+    still run (run_closed_loop stops the roscore and launches it started, others remove temporary folders).
+    Ctrl-C (SIGINT) ends it the same way, after those blocks, with 130 and one line instead of a traceback."""
     try:
         try:
             status = main(*args)
@@ -37,6 +38,10 @@ def run_main(main, *args):
     except BrokenPipeError:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # what is still buffered goes nowhere
         status = 141
+    except KeyboardInterrupt:
+        sys.stderr.write("\n%s: interrupted; what it wrote so far may be incomplete\n"
+                         % os.path.basename(sys.argv[0]))
+        status = 130
     sys.exit(status)
 
 

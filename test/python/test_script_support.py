@@ -64,6 +64,16 @@ class RunMainTest(unittest.TestCase):
             self.assertEqual(err, '')
             self.assertTrue(os.path.exists(marker), 'the finally block did not run')
 
+    def test_ctrl_c_ends_the_script_after_its_finally_blocks_without_a_traceback(self):
+        with tempfile.TemporaryDirectory() as folder:
+            marker = os.path.join(folder, 'cleaned')
+            body = ('def main():\n    try:\n        raise KeyboardInterrupt\n    finally:\n'
+                    '        open(%r, "w").close()\n' % marker)
+            status, err = self.run_script(body, folder)
+            self.assertEqual(status, 130, err)
+            self.assertEqual(err, '\nscript.py: interrupted; what it wrote so far may be incomplete\n')
+            self.assertTrue(os.path.exists(marker), 'the finally block did not run')
+
     def test_a_status_and_a_systemexit_pass_through(self):
         with tempfile.TemporaryDirectory() as folder:
             self.assertEqual(self.run_script('def main():\n    return 3\n', folder), (3, ''))
