@@ -331,6 +331,14 @@ class EvaluateEndToEndTest(unittest.TestCase):
         for name in ("matches.png", "precision_recall.png", "cost_matrix.png"):
             self.assertGreater(os.path.getsize(os.path.join(plots, name)), 1000, name)
 
+    def test_plots_given_a_file_is_refused_by_name(self):
+        # it was "[Errno 17] File exists: 'res.csv'"
+        with contextlib.redirect_stderr(io.StringIO()) as err:
+            with self.assertRaises(SystemExit) as caught:
+                evaluate.main([self.results, "--identity", "--plots", self.results])
+        self.assertEqual(caught.exception.code, 2)
+        self.assertIn("--plots names a folder for the plots; %s is a file" % self.results, err.getvalue())
+
     def test_a_bad_cost_matrix_is_refused_or_named(self):
         plots = os.path.join(self.tmp, "plots")
         cost = os.path.join(self.tmp, "cost.npy")

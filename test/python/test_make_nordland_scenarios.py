@@ -319,8 +319,10 @@ class WriteTest(unittest.TestCase):
                                      ("--dark-mean", "nan", "--dark-mean must be a gray level in [0, 255], got nan"),
                                      ("--dark-std", "nan", "--dark-std must be a gray level in [0, 255], got nan"),
                                      ("--dark-mean", "-3", "--dark-mean must be a gray level"),
-                                     ("--rate", "inf", "--rate must be > 0 and finite")):  # a traceback, bags half made
-            code, err = self.run_main(["--output", self.out, "--data", self.data, option, value])
+                                     ("--rate", "inf", "--rate must be > 0 and finite"),  # a traceback, bags half made
+                                     ("--count", "11", "--first 2 --count 11 asks for frames up to 12; the data has 12 "
+                                                       "(frames 0-11)")):  # cut short to 10 without a word
+            code, err = self.run_main(["--output", self.out, "--data", self.data, "--first", "2", option, value])
             self.assertEqual(code, 2, option + " " + value)
             self.assertIn(words, err)
             self.assertFalse(os.path.exists(self.out) and os.listdir(self.out), option)
