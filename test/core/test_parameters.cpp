@@ -32,6 +32,22 @@ protected:
     return arl::loadParameterFile(path_, &preprocessing_, &localizer_, &error) ? "" : error;
   }
 
+  /// Writes `text` as the file and applies it as localize_offline --params does (applyParameterEntriesChecked)
+  /// over the parameters as they are; its warnings, and the entries read for a test that applies them again.
+  ::testing::AssertionResult applyChecked(const std::string& text, std::vector<std::string>* warnings,
+                                          std::vector<arl::ParameterEntry>* entries_read = nullptr)
+  {
+    std::ofstream(path_) << text;
+    std::vector<arl::ParameterEntry> entries;
+    std::string error;
+    if (!arl::readParameterFile(path_, &entries, &error) ||
+        !arl::applyParameterEntriesChecked(path_, entries, &preprocessing_, &localizer_, warnings, &error))
+      return ::testing::AssertionFailure() << error;
+    if (entries_read)
+      *entries_read = entries;
+    return ::testing::AssertionSuccess();
+  }
+
   const std::string path_ = ::testing::TempDir() + "along_route_params_test.yaml";
   arl::PreprocessingParams preprocessing_;
   arl::LocalizerParams localizer_;
@@ -344,14 +360,11 @@ TEST(ParameterTable, CheckedValuesAreCorrectedIntoTheRangeOrRefusedByName)
 TEST_F(ParameterFile, OneBadValueIsRefusedByNameAndTheGoodOnesAreUsed)
 {
   // Before, "method: DTW" rejected the whole file and the defaults were used instead of K = 10, s = 3.
-  std::ofstream(path_) << "localizer:\n  ring_buffer_rows: 10\n  method: DTW\n  max_step: 3\n  max_shift_px: 500\n"
-                          "  ring_bufer_rows: 9\npreprocessor:\n  sky_fraction: 0.25\n";
   std::vector<arl::ParameterEntry> entries;
   std::vector<std::string> warnings;
-  std::string error;
-  ASSERT_TRUE(arl::readParameterFile(path_, &entries, &error)) << error;
-  ASSERT_TRUE(arl::applyParameterEntriesChecked(path_, entries, &preprocessing_, &localizer_, &warnings, &error))
-      << error;
+  ASSERT_TRUE(applyChecked("localizer:\n  ring_buffer_rows: 10\n  method: DTW\n  max_step: 3\n  max_shift_px: 500\n"
+                           "  ring_bufer_rows: 9\npreprocessor:\n  sky_fraction: 0.25\n",
+                           &warnings, &entries));
   EXPECT_EQ(10, localizer_.ring_buffer_rows);
   EXPECT_EQ(3, localizer_.dtw.max_step);
   EXPECT_EQ(arl::SequenceMethod::kOnlineDtw, localizer_.method);
@@ -363,6 +376,7 @@ TEST_F(ParameterFile, OneBadValueIsRefusedByNameAndTheGoodOnesAreUsed)
   EXPECT_EQ(path_ + ":6: unknown parameter 'ring_bufer_rows' refused (did you mean ring_buffer_rows?)", warnings[2]);
   // A name given twice is still an error: which value was meant is unknown.
   entries.push_back({ "max_step", "4", 9 });
+  std::string error;
   EXPECT_FALSE(arl::applyParameterEntriesChecked(path_, entries, &preprocessing_, &localizer_, &warnings, &error));
   EXPECT_NE(std::string::npos, error.find("'max_step' is already set on line 4")) << error;
 }
@@ -371,14 +385,10 @@ TEST_F(ParameterFile, OneBadValueIsRefusedByNameAndTheGoodOnesAreUsed)
 // from a launch file's parameter file; a parameter file given to localize_offline refused them (the same file).
 TEST_F(ParameterFile, CombinationsAreCorrectedAsTheNodeletCorrectsThem)
 {
-  std::ofstream(path_) << "preprocessor:\n  filter_window: 8\n  normalization: patch\n  output_width: 48\n"
-                          "  output_height: 36\n  patch_size: 8\n";
-  std::vector<arl::ParameterEntry> entries;
   std::vector<std::string> warnings;
-  std::string error;
-  ASSERT_TRUE(arl::readParameterFile(path_, &entries, &error)) << error;
-  ASSERT_TRUE(arl::applyParameterEntriesChecked(path_, entries, &preprocessing_, &localizer_, &warnings, &error))
-      << error;
+  ASSERT_TRUE(applyChecked("preprocessor:\n  filter_window: 8\n  normalization: patch\n  output_width: 48\n"
+                           "  output_height: 36\n  patch_size: 8\n",
+                           &warnings));
   EXPECT_EQ(9, preprocessing_.filter_window);
   EXPECT_EQ(6, preprocessing_.patch_size);  // 48 and 36 have the common divisors 1, 2, 3, 4, 6, 12
   EXPECT_EQ("", preprocessing_.validate());
@@ -503,13 +513,9 @@ TEST_F(ParameterFile, ARemovedNameGetsAWarningWithTheValueItIsFixedAtAndTheOther
   for (const arl::RemovedParameter& removed : arl::removedParameters())
     EXPECT_EQ(nullptr, arl::findParameter(removed.name)) << removed.name << " is removed and in the table";
 
-  std::ofstream(path_) << "localizer:\n  ring_buffer_rows: 10\n  contrast_min_std: 0.05\n  max_step: 3\n";
-  std::vector<arl::ParameterEntry> entries;
   std::vector<std::string> warnings;
-  std::string error;
-  ASSERT_TRUE(arl::readParameterFile(path_, &entries, &error)) << error;
-  ASSERT_TRUE(arl::applyParameterEntriesChecked(path_, entries, &preprocessing_, &localizer_, &warnings, &error))
-      << error;
+  ASSERT_TRUE(applyChecked("localizer:\n  ring_buffer_rows: 10\n  contrast_min_std: 0.05\n  max_step: 3\n",
+                           &warnings));
   ASSERT_EQ(1u, warnings.size());
   EXPECT_EQ(path_ + ":3: " + sentence + "; the value given is ignored", warnings[0]);
   EXPECT_EQ(10, localizer_.ring_buffer_rows);
@@ -522,6 +528,7 @@ TEST_F(ParameterFile, ARemovedNameGetsAWarningWithTheValueItIsFixedAtAndTheOther
   EXPECT_TRUE(refused);
   arl::PreprocessingParams preprocessing;
   arl::LocalizerParams localizer;
+  std::string error;
   EXPECT_FALSE(arl::applyParameter("contrast_min_std", "0.05", &preprocessing, &localizer, &error));
   EXPECT_EQ(sentence, error);
   // The strict loader stops on it, naming the line and saying why.
