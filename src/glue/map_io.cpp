@@ -825,35 +825,29 @@ bool readBagEnds(const std::string& path, BagEnds* ends)
   std::ifstream file(path, std::ios::binary);
   file.seekg(0, std::ios::end);
   const std::streamoff size = file.tellg();
-  if (!file || size < 13 + 8)
+  if (!file || size < 13)
     return false;
-  file.seekg(13);
-  char length[4];
-  if (!file.read(length, 4))
-    return false;
-  const uint32_t header_length = Cursor(length, 4).u32("the file header length");
-  if (header_length > kMaxRecordHeaderBytes || 13 + 8 + static_cast<std::streamoff>(header_length) > size)
-    return false;
-  std::string header(header_length, '\0');
-  if (!file.read(&header[0], header_length) || !file.read(length, 4))
-    return false;
-  const std::streamoff head_size = 13 + 8 + static_cast<std::streamoff>(header_length) +
-                                   static_cast<std::streamoff>(Cursor(length, 4).u32("the file header data length"));
+  file.seekg(13);  // past "#ROSBAG V2.0\n"
+  RecordScanner scanner(file, static_cast<uint64_t>(size));
   uint64_t index_pos = 0;
   try
   {
-    const Fields fields = parseFields(header);
-    const auto field = fields.find("index_pos");
-    if (field == fields.end() || field->second.size() != 8)
+    Record header;
+    if (!scanner.next(&header) || header.op != kOpBagHeader)
       return false;
-    for (int i = 7; i >= 0; --i)
-      index_pos = index_pos << 8 | static_cast<unsigned char>(field->second[static_cast<size_t>(i)]);
+    const auto field = header.fields.find("index_pos");
+    if (field == header.fields.end() || field->second.size() != 8)
+      return false;
+    Cursor cursor(field->second.data(), 8);  // little-endian 64 bits
+    const uint64_t low = cursor.u32("index_pos");
+    index_pos = static_cast<uint64_t>(cursor.u32("index_pos")) << 32 | low;
   }
   catch (const CorruptMap&)
   {
     return false;
   }
-  if (head_size > size || index_pos < static_cast<uint64_t>(head_size) || index_pos > static_cast<uint64_t>(size))
+  const std::streamoff head_size = static_cast<std::streamoff>(scanner.offset());  // the header record's end
+  if (index_pos < static_cast<uint64_t>(head_size) || index_pos > static_cast<uint64_t>(size))
     return false;
   ends->head.resize(static_cast<size_t>(head_size));
   ends->index.resize(static_cast<size_t>(static_cast<uint64_t>(size) - index_pos));
@@ -1001,11 +995,12 @@ void MapWriter::flush()
   for (const sensor_msgs::ImageConstPtr& keyframe : pending_)
     needed += keyframe->data.size() + 1024;
   struct stat info;
-  if (!first && !fileExists(path_, &info) && fileExists(active, &info))
+  const bool at_final_name = !first && fileExists(path_, &info);
+  const uint64_t size = at_final_name ? static_cast<uint64_t>(info.st_size) : 0;
+  if (!first && !at_final_name && fileExists(active, &info))
     throw MapError("map file " + inQuotes(path_) + " is missing: an earlier flush failed (said then); " +
                    inQuotes(active) + " holds what was flushed before (if it does not open, `rosbag reindex` may "
                    "recover it), " + std::to_string(pending_.size()) + " more are buffered");
-  const uint64_t size = (!first && fileExists(path_, &info)) ? static_cast<uint64_t>(info.st_size) : 0;
   const std::string no_room = roomProblem(size, needed);
   if (!no_room.empty())
     throw MapError("no room to write " + std::to_string(pending_.size()) + " keyframes to " + inQuotes(path_) + ": " +
