@@ -33,6 +33,21 @@ namespace along_route_localization
 namespace
 {
 
+/// The MapError message of call() (a flush, a close, a read), or "" when it went through.
+template <typename Call>
+std::string mapErrorOf(Call call)
+{
+  try
+  {
+    call();
+  }
+  catch (const MapError& e)
+  {
+    return e.what();
+  }
+  return "";
+}
+
 class MapIoTest : public ::testing::Test
 {
 protected:
@@ -83,15 +98,7 @@ protected:
   /// The MapError message of readMap(file), or "" when it reads.
   static std::string readError(const std::string& file)
   {
-    try
-    {
-      readMap(file);
-    }
-    catch (const MapError& e)
-    {
-      return e.what();
-    }
-    return "";
+    return mapErrorOf([&] { readMap(file); });
   }
 
   std::string writeTestMap(const std::string& name, int keyframes, uint64_t seed = 42)
@@ -168,6 +175,32 @@ TEST_F(MapIoTest, EachFlushLeavesACompleteMapUnderTheFinalName)
   EXPECT_THROW(writer.add(keyframeMessage(randomKeyframe(rng), 30)), MapError);
 }
 
+/// Sets the process's file size limit for its lifetime (SIGXFSZ ignored: EFBIG instead of the signal).
+class FileSizeLimit
+{
+public:
+  explicit FileSizeLimit(off_t bytes)
+  {
+    getrlimit(RLIMIT_FSIZE, &old_limit_);
+    old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+    struct rlimit limit = old_limit_;
+    limit.rlim_cur = static_cast<rlim_t>(bytes);
+    ok_ = setrlimit(RLIMIT_FSIZE, &limit) == 0;
+  }
+  ~FileSizeLimit()
+  {
+    setrlimit(RLIMIT_FSIZE, &old_limit_);
+    std::signal(SIGXFSZ, old_handler_);
+  }
+  bool ok() const { return ok_; }
+
+private:
+  struct rlimit old_limit_;
+  sighandler_t old_handler_;
+  bool ok_ = false;
+};
+
+
 // A flush without room (here the process's file size limit; a full disk is checked the same way) must not
 // lose the map flushed before: the final name keeps it, the keyframes stay buffered, and a flush once there
 // is room again writes them all. Before, rosbag failed part way through the append, its Bag's destructor
@@ -183,36 +216,19 @@ TEST_F(MapIoTest, AFlushWithoutRoomKeepsTheMapAndALaterFlushWritesEverything)
   ASSERT_EQ(readMap(file).size(), 4u);
   const off_t flushed = fileSize(file);
 
-  struct rlimit old_limit;
-  ASSERT_EQ(0, getrlimit(RLIMIT_FSIZE, &old_limit));
-  const sighandler_t old_handler = std::signal(SIGXFSZ, SIG_IGN);  // EFBIG instead of a signal
-  struct rlimit limit = old_limit;
-  // Each keyframe is counted as its 2048 bytes + 1 KiB, the flush as 64 + 24 KiB more: room for 1 keyframe
-  // (91 KiB) under 100 KiB, not for 40 (208 KiB).
-  limit.rlim_cur = static_cast<rlim_t>(flushed + 100 * 1024);
-  ASSERT_EQ(0, setrlimit(RLIMIT_FSIZE, &limit));
-  writer.add(keyframeMessage(randomKeyframe(rng), 19));
-  try
-  {
-    writer.flush();  // fits
-  }
-  catch (const MapError& e)
-  {
-    ADD_FAILURE() << "a flush that fits was refused: " << e.what();
-  }
-  for (int k = 0; k < 40; ++k)
-    writer.add(keyframeMessage(randomKeyframe(rng), 20 + k));
   std::string error;
-  try
   {
-    writer.flush();
+    // Each keyframe is counted as its 2048 bytes + 1 KiB, the flush as 64 + 24 KiB more: room for 1 keyframe
+    // (91 KiB) under 100 KiB, not for 40 (208 KiB).
+    FileSizeLimit limit(flushed + 100 * 1024);
+    ASSERT_TRUE(limit.ok());
+    writer.add(keyframeMessage(randomKeyframe(rng), 19));
+    const std::string fits = mapErrorOf([&] { writer.flush(); });
+    EXPECT_EQ("", fits) << "a flush that fits was refused: " << fits;
+    for (int k = 0; k < 40; ++k)
+      writer.add(keyframeMessage(randomKeyframe(rng), 20 + k));
+    error = mapErrorOf([&] { writer.flush(); });
   }
-  catch (const MapError& e)
-  {
-    error = e.what();
-  }
-  ASSERT_EQ(0, setrlimit(RLIMIT_FSIZE, &old_limit));
-  std::signal(SIGXFSZ, old_handler);
   EXPECT_NE("", error) << "a flush that could not write did not say so";
   std::printf("the failed flush said: %s\n", error.c_str());
   EXPECT_TRUE(exists(file)) << "the final name lost the map flushed before";
@@ -240,31 +256,6 @@ protected:
   std::string roomProblem(uint64_t /*size*/, uint64_t /*added*/) const override { return ""; }
 };
 
-/// Sets the process's file size limit for its lifetime (SIGXFSZ ignored: EFBIG instead of the signal).
-class FileSizeLimit
-{
-public:
-  explicit FileSizeLimit(off_t bytes)
-  {
-    getrlimit(RLIMIT_FSIZE, &old_limit_);
-    old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
-    struct rlimit limit = old_limit_;
-    limit.rlim_cur = static_cast<rlim_t>(bytes);
-    ok_ = setrlimit(RLIMIT_FSIZE, &limit) == 0;
-  }
-  ~FileSizeLimit()
-  {
-    setrlimit(RLIMIT_FSIZE, &old_limit_);
-    std::signal(SIGXFSZ, old_handler_);
-  }
-  bool ok() const { return ok_; }
-
-private:
-  struct rlimit old_limit_;
-  sighandler_t old_handler_;
-  bool ok_ = false;
-};
-
 /// How many of this process's descriptors refer to `file` (also once it is removed: "<file> (deleted)").
 int descriptorsOn(const std::string& file)
 {
@@ -284,20 +275,6 @@ int descriptorsOn(const std::string& file)
   return count;
 }
 
-/// The MapError message of writer->flush() (or close()), or "" when it went through.
-template <typename Call>
-std::string mapErrorOf(Call call)
-{
-  try
-  {
-    call();
-  }
-  catch (const MapError& e)
-  {
-    return e.what();
-  }
-  return "";
-}
 
 // Before, rosbag failed part way through the append, the Bag's destructor threw again from close() and
 // the process ended (std::terminate: the recorder's whole nodelet manager), leaving the map unindexed under
