@@ -54,25 +54,28 @@ class RunMainTest(unittest.TestCase):
         _, err = process.communicate(timeout=30)
         return process.returncode, err
 
-    def test_a_closed_pipe_ends_the_script_after_its_finally_blocks(self):
+    def run_cleaning_script(self, statements):
+        """run_script of a main() that runs `statements` in a try whose finally block leaves a file; (status,
+        stderr, whether the file is there)."""
         with tempfile.TemporaryDirectory() as folder:
             marker = os.path.join(folder, 'cleaned')
-            body = ('def main():\n    try:\n        for i in range(100000):\n            print("line", i)\n'
-                    '        return 0\n    finally:\n        open(%r, "w").close()\n' % marker)
+            body = ('def main():\n    try:\n%s    finally:\n        open(%r, "w").close()\n'
+                    % (''.join('        %s\n' % line for line in statements), marker))
             status, err = self.run_script(body, folder)
-            self.assertEqual(status, 141, err)
-            self.assertEqual(err, '')
-            self.assertTrue(os.path.exists(marker), 'the finally block did not run')
+            return status, err, os.path.exists(marker)
+
+    def test_a_closed_pipe_ends_the_script_after_its_finally_blocks(self):
+        status, err, cleaned = self.run_cleaning_script(['for i in range(100000):', '    print("line", i)',
+                                                         'return 0'])
+        self.assertEqual(status, 141, err)
+        self.assertEqual(err, '')
+        self.assertTrue(cleaned, 'the finally block did not run')
 
     def test_ctrl_c_ends_the_script_after_its_finally_blocks_without_a_traceback(self):
-        with tempfile.TemporaryDirectory() as folder:
-            marker = os.path.join(folder, 'cleaned')
-            body = ('def main():\n    try:\n        raise KeyboardInterrupt\n    finally:\n'
-                    '        open(%r, "w").close()\n' % marker)
-            status, err = self.run_script(body, folder)
-            self.assertEqual(status, 130, err)
-            self.assertEqual(err, '\nscript.py: interrupted; what it wrote so far may be incomplete\n')
-            self.assertTrue(os.path.exists(marker), 'the finally block did not run')
+        status, err, cleaned = self.run_cleaning_script(['raise KeyboardInterrupt'])
+        self.assertEqual(status, 130, err)
+        self.assertEqual(err, '\nscript.py: interrupted; what it wrote so far may be incomplete\n')
+        self.assertTrue(cleaned, 'the finally block did not run')
 
     def test_a_status_and_a_systemexit_pass_through(self):
         with tempfile.TemporaryDirectory() as folder:
