@@ -273,7 +273,7 @@ void MapRecorderNodelet::onInit()
   pause_srv_ = private_nh.advertiseService("pause", &MapRecorderNodelet::pauseCb, this);
   finish_srv_ = private_nh.advertiseService("finish", &MapRecorderNodelet::finishCb, this);
 
-  const std::string params_topic = preprocessingParamsTopic(nh.resolveName("image_preprocessed"));
+  const std::string params_topic = preprocessingParamsTopic(image_topic_);
   params_sub_ = nh.subscribe(params_topic, 1, &MapRecorderNodelet::paramsCb, this);
   odom_sub_ = nh.subscribe("odom", 10, &MapRecorderNodelet::odomCb, this);
   const MotionType motion_type = readMotionType(private_nh, MotionType::kTwist, &problem);
@@ -288,7 +288,7 @@ void MapRecorderNodelet::onInit()
     subscribeImages();
   diagnostics_timer_ = startDiagnosticsTimer(nh, updater_);
   NODELET_INFO("Recording %s into map %s (%s); preprocessing parameters from %s",
-               nh.resolveName("image_preprocessed").c_str(), map_path_.c_str(),
+               image_topic_.c_str(), map_path_.c_str(),
                autostart ? "started" : "call ~start to begin", params_topic.c_str());
 }
 
