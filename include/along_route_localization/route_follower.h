@@ -152,6 +152,9 @@ public:
   double safetyScale() const { return scale_; }
   /// True while the follower should publish: following, or still ramping down to zero.
   bool driving() const;
+  /// True while the target is a standstill (stopped, paused, finished or a following stop) but the last
+  /// command still moves: the rate limits are bringing the robot to rest. reason() says why it stops.
+  bool braking() const;
   int lowConfidenceFrames() const { return low_frames_; }
   double filteredHomingAngle() const { return homing_filtered_rad_; }
   /// True while the target is a recovery creep; the distance crept since the last confident localization.

@@ -142,6 +142,12 @@ bool RouteFollower::driving() const
   return state_ == State::kFollowing || command_.linear_mps != 0.0 || command_.angular_rps != 0.0;
 }
 
+bool RouteFollower::braking() const
+{
+  const bool at_rest_target = target_.linear_mps == 0.0 && target_.angular_rps == 0.0;
+  return at_rest_target && (command_.linear_mps != 0.0 || command_.angular_rps != 0.0);
+}
+
 bool RouteFollower::start(double now_s, std::string* message)
 {
   if (state_ == State::kFollowing)

@@ -348,10 +348,12 @@ void RouteFollowerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper&
   }
   const std::string state = toString(follower_->state());
   const std::string& reason = follower_->reason();
+  // A stop takes time at max_linear_decel: until the command is zero, say that the robot still moves.
+  const std::string summary = follower_->braking() ? "braking to a stop: " + reason : reason;
   if (follower_->state() == RouteFollower::State::kFollowing && follower_->safetyScale() < 1.0)
-    stat.summary(DiagnosticStatus::WARN, reason);
+    stat.summary(DiagnosticStatus::WARN, summary);
   else
-    stat.summary(DiagnosticStatus::OK, reason);
+    stat.summary(DiagnosticStatus::OK, summary);
   stat.add("state", state);
   stat.add("reason", reason);
   stat.add("keyframes", follower_->keyframes());

@@ -239,6 +239,7 @@ TEST(RouteFollower, BrakesAtTheDecelerationLimitAndSpeedsUpAtTheAccelerationLimi
   follower.localization(tracking(0, 0.9, 0.0), 0.0);
   EXPECT_CLOSE(0.0, follower.command(0.0).linear_mps);
   EXPECT_CLOSE(0.1, follower.command(0.2).linear_mps);  // speeding up: 0.5 m/s^2 x 0.2 s
+  EXPECT_FALSE(follower.braking());
   EXPECT_CLOSE(0.2, follower.command(0.4).linear_mps);
   // Backing up: brake to 0 at 2 m/s^2 (0.1 s), then 0.1 s the other way at 0.5 m/s^2.
   follower.localization(tracking(1, 0.9, 0.0), 0.4);
@@ -255,7 +256,9 @@ TEST(RouteFollower, BrakesAtTheDecelerationLimitAndSpeedsUpAtTheAccelerationLimi
   std::string message;
   EXPECT_TRUE(follower.pause(&message)) << message;
   EXPECT_CLOSE(-0.05, follower.command(1.25).linear_mps);
+  EXPECT_TRUE(follower.braking());  // backing up counts: the robot still moves
   EXPECT_CLOSE(0.0, follower.command(1.3).linear_mps);
+  EXPECT_FALSE(follower.braking());
 }
 
 TEST(RouteFollower, StopsAtTheEndOfTheRouteUntilStartedAgain)
@@ -266,13 +269,16 @@ TEST(RouteFollower, StopsAtTheEndOfTheRouteUntilStartedAgain)
   arl::RouteFollower follower = started({ motion(0.5, 0.0), motion(0.5, 0.0), motion(0.5, 0.0) }, params);
   follower.localization(tracking(1, 0.9, 0.0), 0.0);
   EXPECT_CLOSE(0.5, follower.command(1.0).linear_mps);
+  EXPECT_FALSE(follower.braking());  // at the taught speed
   follower.localization(tracking(2, 0.9, 0.0, arl::LocalizationStatus::kEndOfRoute), 1.0);
   EXPECT_EQ(arl::RouteFollower::State::kFinished, follower.state());
   EXPECT_CLOSE(0.3, follower.command(1.2).linear_mps);  // ramps down at 1 m/s^2
   EXPECT_TRUE(follower.driving());
+  EXPECT_TRUE(follower.braking());  // finished, but still moving at 0.3 m/s
   EXPECT_NE(std::string::npos, follower.reason().find("end of the route")) << follower.reason();
   EXPECT_CLOSE(0.0, follower.command(1.6).linear_mps);
   EXPECT_FALSE(follower.driving());
+  EXPECT_FALSE(follower.braking());  // at rest
   // Later localizations on the route do not drive again by themselves.
   follower.localization(tracking(1, 0.9, 0.0), 1.7);
   EXPECT_CLOSE(0.0, follower.command(1.8).linear_mps);

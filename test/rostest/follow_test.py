@@ -298,9 +298,17 @@ class FollowTest(unittest.TestCase):
         resumed = self.call('start')
         self.assertEqual((resumed.success, resumed.message), (True, 'resumed following'))
         self.drive('resumed')
+        # A stop ramps down at max_linear_decel (0.1 m/s^2 here: 5 s from 0.5 m/s). Meanwhile the diagnostics
+        # say the robot is still braking; at rest, that it stopped.
+        reconfigure.update_configuration({'max_linear_decel': 0.1})
         stop = self.call('stop')
         self.assertTrue(stop.success, stop.message)
+        braking = self.status(lambda s: s.message.startswith('braking to a stop: stopped by the stop service'),
+                              'braking in the diagnostics')
+        self.assertGreater(float(fx.status_values(braking)['linear command (m/s)']), 0.0)
         self.wait_for_command(0.0, 0.0, 'stopped')
+        self.status(lambda s: s.message.startswith('stopped by the stop service'), 'at rest in the diagnostics')
+        reconfigure.update_configuration({'max_linear_decel': 2.0})
         self.assertFalse(self.call('stop').success)
         self.assertTrue(self.call('start').success)
         self.drive('started again')
