@@ -5,6 +5,7 @@
 #ifndef ALONG_ROUTE_LOCALIZATION_PARAMETERS_H
 #define ALONG_ROUTE_LOCALIZATION_PARAMETERS_H
 
+#include <set>
 #include <string>
 #include <vector>
 
@@ -154,33 +155,43 @@ std::vector<std::string> preprocessingParameterNames();
 /// ... and those of LocalizerParams (steps 2-5: the localizer's).
 std::vector<std::string> localizerParameterNames();
 
-/// One "name: value" entry of a parameter file and the line it is on (for error messages).
+/// The private parameters a nodelet of `group` reads besides the table's: its ROS settings (the map path,
+/// topics' queues and transports, rates), which the offline tools have no use for. The nodelets warn about
+/// any other name under their namespace; a parameter file's section may hold these.
+const std::set<std::string>& nodeletSettingNames(ParameterGroup group);
+
+/// One "name: value" entry of a parameter file, the line it is on (for error messages) and the section it
+/// is under ("" in a flat file).
 struct ParameterEntry
 {
   std::string name, value;
   int line = 0;
+  std::string section;
 };
 
 /// Reads the entries of a flat YAML mapping ("name: value" per line, '#' comments, optional single
 /// top-level section headers such as "localizer:" whose indented entries are read the same way) without
-/// applying them. The entries of "map_recorder:" and "route_follower:" sections are skipped, so the launch
-/// files' params_file (sections preprocessor:, map_recorder:, localizer:, route_follower:) can be given as
-/// it is. Returns false with *error naming the file and line when the file cannot be read, a line is not
+/// applying them, each with its section, so the launch files' params_file (sections preprocessor:,
+/// map_recorder:, localizer:, route_follower:) can be given as it is. Returns false with *error naming the file and line when the file cannot be read, a line is not
 /// "name: value", or YAML (which the launch files read the file as) would read it otherwise: a header that
 /// is not one of those four sections, flow style ("localizer: {max_step: 3}"), a tab or an indentation
 /// YAML refuses.
 bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* entries, std::string* error);
 
-/// Applies the entries read from `path` in file order. Returns false with *error naming the file and line
-/// on the first unknown name, unparsable value, or name given twice. Booleans: true/false, yes/no,
-/// on/off (as YAML 1.1 and rosparam read them), 1/0.
+/// Applies the entries read from `path` in file order; those of the map_recorder: and route_follower:
+/// sections are not the localizer's and are skipped. Returns false with *error naming the file and line
+/// on the first unknown name, unparsable value, name given twice, or entry under the section of a nodelet
+/// that does not read it (the launch files set it there, where it is ignored). Booleans: true/false,
+/// yes/no, on/off (as YAML 1.1 and rosparam read them), 1/0.
 bool applyParameterEntries(const std::string& path, const std::vector<ParameterEntry>& entries,
                            PreprocessingParams* preprocessing, LocalizerParams* localizer, std::string* error);
 
 /// As applyParameterEntries, but one bad entry does not cost the others: an unknown name, a value that
-/// does not parse or a name not among the choices is refused (the parameter keeps its value), a number
-/// outside its working range is corrected (setParameterChecked); each is a sentence in *warnings, naming
-/// the file, line and parameter. Returns false with *error only for a name given twice (which value was
+/// does not parse, a name not among the choices or an entry under another nodelet's section is refused
+/// (the parameter keeps its value), a number outside its working range is corrected
+/// (setParameterChecked); each is a sentence in *warnings, naming the file, line and parameter. The
+/// map_recorder: and route_follower: sections are checked the same way, as their nodelets read them, and
+/// not applied. Returns false with *error only for a name given twice in one section (which value was
 /// meant is unknown).
 bool applyParameterEntriesChecked(const std::string& path, const std::vector<ParameterEntry>& entries,
                                   PreprocessingParams* preprocessing, LocalizerParams* localizer,

@@ -735,6 +735,63 @@ std::vector<std::string> parameterNames()
   return names;
 }
 
+const std::set<std::string>& nodeletSettingNames(ParameterGroup group)
+{
+  static const std::set<std::string> preprocessor = { "queue_size", "image_transport" };
+  static const std::set<std::string> localizer = { "map",       "debug_image_scale", "min_rate",
+                                                   "max_rate",  "image_transport",   "diagnostic_period",
+                                                   "report_input_buffer", "motion_type" };
+  static const std::set<std::string> recorder = { "map",        "autostart",       "flush_period", "max_queue",
+                                                  "queue_size", "image_transport", "motion_type" };
+  static const std::set<std::string> follower = { "map", "autostart", "control_rate" };
+  switch (group)
+  {
+    case ParameterGroup::kPreprocessor:
+      return preprocessor;
+    case ParameterGroup::kLocalizer:
+      return localizer;
+    case ParameterGroup::kMapRecorder:
+      return recorder;
+    case ParameterGroup::kRouteFollower:
+      break;
+  }
+  return follower;
+}
+
+namespace
+{
+
+/// Whether the entries of `section` are the localizing nodelets' (a flat file's are).
+bool localizingSection(const std::string& section)
+{
+  return section.empty() || section == toString(ParameterGroup::kPreprocessor) ||
+         section == toString(ParameterGroup::kLocalizer);
+}
+
+/// "" unless the entry is a known parameter under the section of a nodelet that does not read it; then
+/// the sentence saying where it belongs.
+std::string misplacedSentence(const ParameterEntry& entry)
+{
+  const ParameterSpec* spec = findParameter(entry.name);
+  if (entry.section.empty() || !spec || toString(spec->group) == entry.section)
+    return std::string();
+  return "'" + entry.name + "' is the " + toString(spec->group) + "'s parameter but is under " + entry.section +
+         ":, where the launch files set it for the " + entry.section + ", which does not read it: move it under " +
+         toString(spec->group) + ":";
+}
+
+/// Whether the entry is one of its section's nodelet settings (nodeletSettingNames).
+bool isNodeletSetting(const ParameterEntry& entry)
+{
+  for (const ParameterGroup group : { ParameterGroup::kPreprocessor, ParameterGroup::kLocalizer,
+                                      ParameterGroup::kMapRecorder, ParameterGroup::kRouteFollower })
+    if (toString(group) == entry.section)
+      return nodeletSettingNames(group).count(entry.name) > 0;
+  return false;
+}
+
+}  // namespace
+
 bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* entries, std::string* error)
 {
   entries->clear();
@@ -751,7 +808,7 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
   int number = 0;
   // Once a section has begun, entries at the start of a line are refused: the last section stays open to
   // the end, and before the first one every entry is such a flat one.
-  bool skipped_section = false;
+  std::string section;
   size_t section_indent = std::string::npos;  // of the open section's entries, once its first one is read
   std::set<std::string> sections_seen;
   const auto flatAmongSections = [](const std::string& name) {
@@ -798,7 +855,7 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
       if (!sections_seen.insert(name).second)
         return fail("'" + name + ":' appears a second time (YAML keeps only the last one): give each section once");
       section_indent = std::string::npos;
-      skipped_section = name == "map_recorder" || name == "route_follower";
+      section = name;
       continue;
     }
     if (!indented)
@@ -815,8 +872,7 @@ bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* ent
     else if (indent != section_indent)
       return fail("'" + name + "' is indented by " + std::to_string(indent) + " spaces, the entries above it by " +
                   std::to_string(section_indent) + " (YAML refuses that)");
-    if (!skipped_section)
-      entries->push_back({ name, value, number });
+    entries->push_back({ name, value, number, section });
   }
   if (in.bad())  // e.g. a folder: it opens, but reading it fails
   {
@@ -833,8 +889,10 @@ bool applyParameterEntries(const std::string& path, const std::vector<ParameterE
   std::map<std::string, int> set_on_line;  // a name given twice would otherwise silently take the last value
   for (const ParameterEntry& entry : entries)
   {
-    std::string why;
-    if (!applyParameter(entry.name, entry.value, preprocessing, localizer, &why))
+    if (!localizingSection(entry.section))
+      continue;
+    std::string why = misplacedSentence(entry);
+    if (!why.empty() || !applyParameter(entry.name, entry.value, preprocessing, localizer, &why))
     {
       *error = path + ":" + std::to_string(entry.line) + ": " + why;
       return false;
@@ -857,7 +915,9 @@ bool applyParameterEntriesChecked(const std::string& path, const std::vector<Par
   std::map<std::string, int> set_on_line;
   for (const ParameterEntry& entry : entries)
   {
-    const auto earlier = set_on_line.emplace(entry.name, entry.line);
+    // The recorder's and the follower's sections are other nodelets' namespaces: a name once in each is fine.
+    const std::string key = (localizingSection(entry.section) ? std::string() : entry.section + "/") + entry.name;
+    const auto earlier = set_on_line.emplace(key, entry.line);
     if (!earlier.second)
     {
       *error = path + ":" + std::to_string(entry.line) + ": '" + entry.name + "' is already set on line " +
@@ -868,11 +928,20 @@ bool applyParameterEntriesChecked(const std::string& path, const std::vector<Par
   ParameterSet params;
   params.preprocessing = *preprocessing;
   params.localizer = *localizer;
+  ParameterSet others;  // the recorder's and the follower's sections: checked, not used here
   for (const ParameterEntry& entry : entries)
   {
     const ParameterSpec* spec = findParameter(entry.name);
-    std::string sentence;
-    if (spec && (spec->group == ParameterGroup::kMapRecorder || spec->group == ParameterGroup::kRouteFollower))
+    std::string sentence = misplacedSentence(entry);
+    if (!sentence.empty())
+      sentence += "; ignored";
+    else if (isNodeletSetting(entry))
+      sentence = localizingSection(entry.section)
+                     ? "'" + entry.name + "' is a setting of the " + entry.section + " nodelet; ignored here"
+                     : std::string();  // the section is not used here: nothing to say
+    else if (!localizingSection(entry.section))
+      sentence = setParameterChecked(entry.name, entry.value, &others);
+    else if (spec && (spec->group == ParameterGroup::kMapRecorder || spec->group == ParameterGroup::kRouteFollower))
       sentence = "'" + entry.name + "' is the " +
                  (spec->group == ParameterGroup::kMapRecorder ? "map recorder" : "route follower") +
                  "'s parameter; ignored here";

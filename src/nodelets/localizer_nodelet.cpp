@@ -237,8 +237,7 @@ void LocalizerNodelet::warnAboutUnreadParameters(const ros::NodeHandle& private_
   std::set<std::string> read = configParameterNames<LocalizerConfig>();
   for (const std::string& name : localizerParameterNames())
     read.insert(name);
-  const std::set<std::string> own = { "map",           "debug_image_scale", "min_rate",           "max_rate",
-                                      "image_transport", "diagnostic_period", "report_input_buffer", "motion_type" };
+  const std::set<std::string>& own = nodeletSettingNames(ParameterGroup::kLocalizer);
   read.insert(own.begin(), own.end());
   const std::vector<std::string> preprocessing = preprocessingParameterNames();
   for (const std::string& name : unreadParameters(private_nh, read))

@@ -56,6 +56,7 @@
 #include <std_srvs/Trigger.h>
 
 #include "along_route_localization/MapRecorderConfig.h"
+#include "along_route_localization/parameters.h"
 #include "along_route_localization/preprocessing.h"
 #include "glue/diagnostics.h"
 #include "glue/map_io.h"
@@ -188,8 +189,7 @@ void MapRecorderNodelet::onInit()
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& private_nh = getPrivateNodeHandle();
 
-  const std::set<std::string> own = { "map",        "autostart",       "flush_period", "max_queue",
-                                      "queue_size", "image_transport", "motion_type" };
+  const std::set<std::string>& own = nodeletSettingNames(ParameterGroup::kMapRecorder);
   std::set<std::string> read = configParameterNames<MapRecorderConfig>();
   read.insert(own.begin(), own.end());
   for (const std::string& name : unreadParameters(private_nh, read))

@@ -25,6 +25,7 @@
 #include <std_msgs/String.h>
 
 #include "along_route_localization/PreprocessorConfig.h"
+#include "along_route_localization/parameters.h"
 #include "along_route_localization/preprocessing.h"
 #include "glue/diagnostics.h"
 #include "glue/image_message.h"
@@ -92,7 +93,7 @@ void PreprocessorNodelet::onInit()
                   "give the base topic (image:=%s) and set ~image_transport to %s",
                   image_topic_.c_str(), transport.c_str(), image_topic_.substr(0, slash).c_str(),
                   image_topic_.substr(0, slash).c_str(), transport.c_str());
-  const std::set<std::string> own = { "queue_size", "image_transport" };
+  const std::set<std::string>& own = nodeletSettingNames(ParameterGroup::kPreprocessor);
   std::set<std::string> read = configParameterNames<PreprocessorConfig>();
   read.insert(own.begin(), own.end());
   for (const std::string& name : unreadParameters(private_nh, read))

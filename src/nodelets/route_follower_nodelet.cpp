@@ -30,6 +30,7 @@
 
 #include "along_route_localization/Localization.h"
 #include "along_route_localization/RouteFollowerConfig.h"
+#include "along_route_localization/parameters.h"
 #include "along_route_localization/route_follower.h"
 #include "glue/diagnostics.h"
 #include "glue/map_io.h"
@@ -88,7 +89,7 @@ void RouteFollowerNodelet::onInit()
   ros::NodeHandle& private_nh = getPrivateNodeHandle();
 
   std::set<std::string> read = configParameterNames<RouteFollowerConfig>();
-  const std::set<std::string> own = { "map", "autostart", "control_rate" };
+  const std::set<std::string>& own = nodeletSettingNames(ParameterGroup::kRouteFollower);
   read.insert(own.begin(), own.end());
   for (const std::string& name : unreadParameters(private_nh, read))
     NODELET_WARN("%s", unreadSentence(name, "route follower", read).c_str());

@@ -115,6 +115,54 @@ TEST_F(ParameterFile, ANameGivenTwiceIsAnErrorNamingBothLines)
   EXPECT_EQ(4, localizer_.dtw.max_step);
   // Outside its section, a follower's parameter is not the localizer's: refused, naming it.
   EXPECT_EQ(path_ + ":1: unknown parameter 'homing_gain'", load("homing_gain: 3.0\n"));
+  // Under the preprocessor's section, the localizer's parameter is set where its nodelet does not read it.
+  EXPECT_EQ(path_ + ":2: 'max_step' is the localizer's parameter but is under preprocessor:, where the launch files "
+                    "set it for the preprocessor, which does not read it: move it under localizer:",
+            load("preprocessor:\n  max_step: 3\n"));
+}
+
+TEST_F(ParameterFile, EveryNodeletsSectionIsCheckedAsItsNodeletReadsItAndOnlyTheLocalizingOnesApplied)
+{
+  // The launch files' params_file with a mistake in each section, and each nodelet's own settings.
+  localizer_.dtw.max_step = 2;
+  std::vector<std::string> warnings;
+  ASSERT_TRUE(applyChecked("preprocessor:\n"          // 1
+                           "  sky_fraction: 0.25\n"    // 2
+                           "  max_step: 3\n"           // 3: the localizer's, misplaced
+                           "  queue_size: 4\n"         // 4: the preprocessor nodelet's own setting
+                           "map_recorder:\n"           // 5
+                           "  every_nth: 0\n"          // 6: below 1
+                           "  autostart: true\n"       // 7: the recorder nodelet's own setting
+                           "  homing_gain: 2\n"        // 8: the follower's, misplaced
+                           "localizer:\n"              // 9
+                           "  ring_buffer_rows: 12\n"  // 10
+                           "route_follower:\n"         // 11
+                           "  homing_gain: 1.5\n"      // 12: once per section is not twice
+                           "  speed_factr: 0.5\n"      // 13: misspelt
+                           "  max_linear_decel: 0.01\n"  // 14: below 0.1
+                           "  control_rate: 20\n"      // 15: the follower nodelet's own setting
+                           "  every_nth: 2\n",         // 16: the recorder's, misplaced
+                           &warnings));
+  const std::string at = path_ + ":";
+  const std::vector<std::string> expected = {
+    at + "3: 'max_step' is the localizer's parameter but is under preprocessor:, where the launch files set it for "
+         "the preprocessor, which does not read it: move it under localizer:; ignored",
+    at + "4: 'queue_size' is a setting of the preprocessor nodelet; ignored here",
+    at + "6: every_nth 0 is outside 1 .. 1000 frames; using 1",
+    at + "8: 'homing_gain' is the route_follower's parameter but is under map_recorder:, where the launch files set "
+         "it for the map_recorder, which does not read it: move it under route_follower:; ignored",
+    at + "13: unknown parameter 'speed_factr' refused (did you mean speed_factor?)",
+    at + "14: max_linear_decel 0.01 is outside 0.1 .. 100 m/s^2; using 0.1",
+    at + "16: 'every_nth' is the map_recorder's parameter but is under route_follower:, where the launch files set "
+         "it for the route_follower, which does not read it: move it under map_recorder:; ignored",
+  };
+  EXPECT_EQ(expected, warnings);
+  // Only the preprocessor's and the localizer's entries in their own sections were applied.
+  EXPECT_DOUBLE_EQ(0.25, preprocessing_.sky_fraction);
+  EXPECT_EQ(12, localizer_.ring_buffer_rows);
+  EXPECT_EQ(2, localizer_.dtw.max_step);
+  // A name twice in one of those sections is still an error.
+  EXPECT_FALSE(applyChecked("route_follower:\n  homing_gain: 1.5\n  homing_gain: 2\n", &warnings));
 }
 
 TEST_F(ParameterFile, EntriesAreReadWithTheirLinesAndAppliedLater)
@@ -125,15 +173,20 @@ TEST_F(ParameterFile, EntriesAreReadWithTheirLinesAndAppliedLater)
   std::vector<arl::ParameterEntry> entries;
   std::string error;
   ASSERT_TRUE(arl::readParameterFile(path_, &entries, &error)) << error;
-  ASSERT_EQ(3u, entries.size());
+  ASSERT_EQ(4u, entries.size());
   EXPECT_EQ("sky_fraction", entries[0].name);
   EXPECT_EQ("0.25", entries[0].value);
   EXPECT_EQ(3, entries[0].line);
-  EXPECT_EQ("max_step", entries[1].name);
-  EXPECT_EQ(7, entries[1].line);
-  EXPECT_EQ("bogus_name", entries[2].name);
-  EXPECT_EQ(8, entries[2].line);
-  // Reading does not judge names; applying does, naming the line, after applying the entries before it.
+  EXPECT_EQ("preprocessor", entries[0].section);
+  EXPECT_EQ("every_nth", entries[1].name);
+  EXPECT_EQ("map_recorder", entries[1].section);
+  EXPECT_EQ("max_step", entries[2].name);
+  EXPECT_EQ(7, entries[2].line);
+  EXPECT_EQ("localizer", entries[2].section);
+  EXPECT_EQ("bogus_name", entries[3].name);
+  EXPECT_EQ(8, entries[3].line);
+  // Reading does not judge names; applying does, naming the line, after applying the entries before it
+  // (the recorder's section is not the localizer's: skipped).
   arl::PreprocessingParams preprocessing;
   arl::LocalizerParams localizer;
   EXPECT_FALSE(arl::applyParameterEntries(path_, entries, &preprocessing, &localizer, &error));
@@ -375,7 +428,7 @@ TEST_F(ParameterFile, OneBadValueIsRefusedByNameAndTheGoodOnesAreUsed)
   EXPECT_EQ(path_ + ":5: max_shift_px 500 is outside 0 .. 127 px; using 127", warnings[1]);
   EXPECT_EQ(path_ + ":6: unknown parameter 'ring_bufer_rows' refused (did you mean ring_buffer_rows?)", warnings[2]);
   // A name given twice is still an error: which value was meant is unknown.
-  entries.push_back({ "max_step", "4", 9 });
+  entries.push_back({ "max_step", "4", 9, "localizer" });
   std::string error;
   EXPECT_FALSE(arl::applyParameterEntriesChecked(path_, entries, &preprocessing_, &localizer_, &warnings, &error));
   EXPECT_NE(std::string::npos, error.find("'max_step' is already set on line 4")) << error;

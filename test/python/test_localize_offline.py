@@ -189,6 +189,20 @@ class LocalizeOfflineTest(unittest.TestCase):
         self.assertEqual(corrected.returncode, 0, corrected.stderr)
         self.assertIn('%s: filter_window 8 is even; using 9' % params, corrected.stderr)
         self.assertIn('with the 1 warning above about', corrected.stdout)
+        # follow.launch's params_file: the follower's and the recorder's sections are checked as their nodelets
+        # read them (they were skipped), a name under another nodelet's section is named; their own settings
+        # (autostart, control_rate) are not refused
+        with open(params, 'w') as f:
+            f.write('map_recorder:\n  autostart: true\n  every_nth: 2\nroute_follower:\n  control_rate: 20\n'
+                    '  homing_gain: 99\n  speed_factr: 0.5\n  every_nth: 2\n')
+        checked = self.run_runner('--check-params', '--params', params)
+        self.assertEqual(checked.returncode, 0, checked.stderr)
+        self.assertIn('%s:6: homing_gain 99 is outside 0 .. ' % params, checked.stderr)
+        self.assertIn("%s:7: unknown parameter 'speed_factr' refused (did you mean speed_factor?)" % params,
+                      checked.stderr)
+        self.assertIn("%s:8: 'every_nth' is the map_recorder's parameter but is under route_follower:" % params,
+                      checked.stderr)
+        self.assertIn('with the 3 warnings above', checked.stdout)
         # it reads no input: given one, it says so rather than ignoring it
         self.assertFails(self.run_runner('--check-params', '--map', self.map_dir), 'reads no map, query or output')
 
@@ -549,7 +563,7 @@ class LocalizeOfflineTest(unittest.TestCase):
 
     def test_reads_the_launch_files_params_file(self):
         # The params_file given to teach.launch and repeat.launch: its localizer: section applies, its
-        # map_recorder: section is skipped, a misspelt name is refused with a warning naming file and line.
+        # map_recorder: section is not used, a misspelt name is refused with a warning naming file and line.
         params = os.path.join(self.tmp, 'shared_params.yaml')
         with open(params, 'w') as f:
             f.write('preprocessor:\n  normalization_strength: 0.1\nmap_recorder:\n  every_nth: 3\n'
