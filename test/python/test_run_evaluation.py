@@ -121,6 +121,36 @@ class BadInputTest(unittest.TestCase):
         self.assertIn("summer map, winter query: the roles the defaults were chosen in",
                       evaluation.swapped_heading("summer", "winter"))
 
+    def test_a_run_that_stops_half_way_leaves_no_earlier_results_beside_its_runs(self):
+        # An earlier run's results.md stayed beside the runs an interrupted run had rewritten, as if it were
+        # theirs. Now it is renamed results.previous.md before anything is made. A localize_offline that takes
+        # the settings and then fails stops this run at its first scenario.
+        import numpy as np
+        tmp = tempfile.mkdtemp(prefix="test_run_evaluation_stop_")
+        try:
+            data = fake_nordland(os.path.join(tmp, "data"), 12,
+                                 lambda season, k: np.full((32, 64), 10 * k + (5 if season == "winter" else 0),
+                                                           np.uint8))
+            binary = os.path.join(tmp, "failing_localize_offline")
+            with open(binary, "w") as f:
+                f.write("#!/bin/sh\n[ \"$1\" = --check-params ] && exit 0\necho 'disk on fire' >&2\nexit 1\n")
+            os.chmod(binary, 0o755)
+            output = os.path.join(tmp, "out")
+            os.makedirs(output)
+            with open(os.path.join(output, "results.md"), "w") as f:
+                f.write("an earlier evaluation\n")
+            err = io.StringIO()
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                code = evaluation.main(["--data", data, "--output", output, "--extra-seeds", "none", "--folds", "0",
+                                        "--scenarios", "aligned", "--methods", "dtw", "--localize-offline", binary])
+            self.assertNotEqual(code, 0)
+            self.assertIn("disk on fire", err.getvalue())
+            self.assertFalse(os.path.exists(os.path.join(output, "results.md")))
+            with open(os.path.join(output, "results.previous.md")) as f:
+                self.assertEqual(f.read(), "an earlier evaluation\n")
+        finally:
+            shutil.rmtree(tmp)
+
 
 class ParameterSensitivityCommandTest(unittest.TestCase):
     """scripts/parameter_sensitivity runs run_evaluation once per setting: the command it builds must be
