@@ -45,6 +45,7 @@
 #include "along_route_localization/localizer.h"
 #include "along_route_localization/parameters.h"
 #include "glue/diagnostics.h"
+#include "glue/image_subscription.h"
 #include "glue/map_io.h"
 #include "glue/private_parameters.h"
 #include "glue/reconfigure.h"
@@ -90,6 +91,7 @@ private:
 
   std::shared_ptr<image_transport::ImageTransport> it_;
   image_transport::Subscriber image_sub_;  // from the first map loaded on (subscribeImages)
+  std::string transport_error_;            // why images cannot be subscribed to (a missing plugin), or ""
   std::string image_topic_;                // its resolved name
   image_transport::Publisher debug_pub_;
   ros::Subscriber params_sub_;
@@ -324,6 +326,9 @@ void LocalizerNodelet::onInit()
     input_buffer_pub_ = private_nh.advertise<std_msgs::String>("input_buffer", 100);
   it_ = std::make_shared<image_transport::ImageTransport>(nh);
   debug_pub_ = it_->advertise("localization_debug_image", 1);
+  transport_error_ = transportProblem(private_nh);  // said now, not only once a map is loaded
+  if (!transport_error_.empty())
+    NODELET_ERROR("Images on %s: %s", image_topic_.c_str(), transport_error_.c_str());
   // The same single-threaded queue as the images: the detector needs no lock. Before the images are
   // subscribed: imageCb reads motion_sub_, and callbacks may run while onInit goes on.
   const MotionType motion_type = readMotionType(private_nh, MotionType::kNone, &problem);
@@ -476,10 +481,14 @@ bool LocalizerNodelet::loadMap(const std::string& path, std::string* message)
 
 void LocalizerNodelet::subscribeImages()
 {
-  if (image_sub_ || !it_)
+  if (image_sub_ || !it_ || !transport_error_.empty())  // a missing transport plugin: a new load tries again
     return;
-  const image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
-  image_sub_ = it_->subscribe("image_preprocessed", 1, &LocalizerNodelet::imageCb, this, hints);
+  std::string error;
+  image_sub_ = subscribeTransported(*it_, "image_preprocessed", 1, &LocalizerNodelet::imageCb, this,
+                                    getPrivateNodeHandle(), &error);
+  if (!error.empty())
+    NODELET_ERROR("Images on %s: %s", image_topic_.c_str(), error.c_str());
+  transport_error_ = error;
 }
 
 void LocalizerNodelet::useMapIfAccepted()
@@ -771,7 +780,9 @@ void LocalizerNodelet::dropFrame(Drop kind, const std::string& sentence)
 
 void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
 {
-  if (!map_)
+  if (!transport_error_.empty())
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "not subscribed to " + image_topic_ + ": " + transport_error_);
+  else if (!map_)
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
                  map_error_ + "; not listening to " + image_topic_ + " until a map is loaded");
   else if (!localizer_)

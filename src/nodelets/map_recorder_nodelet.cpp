@@ -59,6 +59,7 @@
 #include "along_route_localization/parameters.h"
 #include "along_route_localization/preprocessing.h"
 #include "glue/diagnostics.h"
+#include "glue/image_subscription.h"
 #include "glue/map_io.h"
 #include "glue/private_parameters.h"
 #include "glue/reconfigure.h"
@@ -122,8 +123,10 @@ private:
   void subscribeImages();
 
   std::shared_ptr<image_transport::ImageTransport> it_;
-  std::mutex image_sub_mutex_;  // onInit, startCb
+  std::mutex image_sub_mutex_;  // onInit, startCb, diagnose
   image_transport::Subscriber image_sub_;
+  std::string transport_error_;  // why images cannot be subscribed to (a missing transport plugin), or ""; guarded
+                                 // by image_sub_mutex_
   std::string image_topic_;  // resolved in onInit
   uint32_t image_queue_size_ = 100;
   ros::Subscriber params_sub_, odom_sub_, motion_sub_;
@@ -255,6 +258,16 @@ void MapRecorderNodelet::onInit()
     NODELET_ERROR("Nothing will be recorded until ~start succeeds: %s", e.what());
     writer_error_ = e.what();
     autostart = false;
+  }
+  {
+    std::lock_guard<std::mutex> lock(image_sub_mutex_);
+    transport_error_ = transportProblem(private_nh);
+    if (!transport_error_.empty())
+    {
+      NODELET_ERROR("Nothing will be recorded: images on %s: %s", nh.resolveName("image_preprocessed").c_str(),
+                    transport_error_.c_str());
+      autostart = false;
+    }
   }
   struct stat existing;
   if (writer_error_.empty() && ::stat(map_path_.c_str(), &existing) == 0)
@@ -577,8 +590,15 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
   }
   static const char* const kStates[] = { "idle", "recording", "paused", "finished" };
   const std::string keyframes = std::to_string(queued) + (queued == 1 ? " keyframe" : " keyframes");
+  std::string transport_error;
+  {
+    std::lock_guard<std::mutex> lock(image_sub_mutex_);
+    transport_error = transport_error_;
+  }
   if (map_path_.empty())
     stat.summary(DiagnosticStatus::ERROR, "no ~map parameter: nothing is recorded");
+  else if (!transport_error.empty())
+    stat.summary(DiagnosticStatus::ERROR, "not recording: no images from " + image_topic_ + ": " + transport_error);
   else if (!writer_error.empty())
     stat.summary(DiagnosticStatus::ERROR, "not recording: " + writer_error);
   else if (state == State::kFinished)
@@ -611,10 +631,12 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
 void MapRecorderNodelet::subscribeImages()
 {
   std::lock_guard<std::mutex> lock(image_sub_mutex_);
-  if (image_sub_)
+  if (image_sub_ || !transport_error_.empty())
     return;
-  const image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
-  image_sub_ = it_->subscribe("image_preprocessed", image_queue_size_, &MapRecorderNodelet::imageCb, this, hints);
+  image_sub_ = subscribeTransported(*it_, "image_preprocessed", image_queue_size_, &MapRecorderNodelet::imageCb, this,
+                                    getPrivateNodeHandle(), &transport_error_);
+  if (!transport_error_.empty())
+    NODELET_ERROR("Nothing will be recorded: images on %s: %s", image_topic_.c_str(), transport_error_.c_str());
 }
 
 bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::Trigger::Response& res)
@@ -642,10 +664,20 @@ bool MapRecorderNodelet::startCb(std_srvs::Trigger::Request& /*req*/, std_srvs::
   std::unique_lock<std::mutex> lock(queue_mutex_);
   if (nothing_taken && keyframes_queued_ == 0)
     writer_error_ = target_error;  // before any keyframe, only the target can have failed
+  std::string transport_error;
+  {
+    std::lock_guard<std::mutex> image_lock(image_sub_mutex_);
+    transport_error = transport_error_;
+  }
   if (map_path_.empty())
   {
     res.success = false;
     res.message = "no ~map parameter: nothing can be recorded";
+  }
+  else if (!transport_error.empty())
+  {
+    res.success = false;
+    res.message = "cannot take images from " + image_topic_ + ": " + transport_error;
   }
   else if (state_ == State::kFinished)
   {

@@ -29,6 +29,7 @@
 #include "along_route_localization/preprocessing.h"
 #include "glue/diagnostics.h"
 #include "glue/image_message.h"
+#include "glue/image_subscription.h"
 #include "glue/map_io.h"
 #include "glue/private_parameters.h"
 #include "glue/reconfigure.h"
@@ -56,6 +57,7 @@ private:
   // Lazy subscription: subscribed only while someone listens to image_preprocessed.
   std::mutex connect_mutex_;
   image_transport::Subscriber sub_;
+  std::string transport_error_;  // why images cannot be subscribed to (a missing transport plugin), or ""
   image_transport::Publisher pub_;
   ros::Publisher params_pub_;
   std::shared_ptr<diagnostic_updater::Updater> updater_;
@@ -93,6 +95,9 @@ void PreprocessorNodelet::onInit()
                   "give the base topic (image:=%s) and set ~image_transport to %s",
                   image_topic_.c_str(), transport.c_str(), image_topic_.substr(0, slash).c_str(),
                   image_topic_.substr(0, slash).c_str(), transport.c_str());
+  transport_error_ = transportProblem(private_nh);  // said now: the subscription comes with a subscriber
+  if (!transport_error_.empty())
+    NODELET_ERROR("Images on %s: %s", image_topic_.c_str(), transport_error_.c_str());
   const std::set<std::string>& own = nodeletSettingNames(ParameterGroup::kPreprocessor);
   std::set<std::string> read = configParameterNames<PreprocessorConfig>();
   read.insert(own.begin(), own.end());
@@ -146,10 +151,14 @@ void PreprocessorNodelet::connectCb()
   {
     sub_.shutdown();
   }
-  else if (!sub_)
+  else if (!sub_ && transport_error_.empty())  // a missing transport plugin: only a new load tries again
   {
-    const image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
-    sub_ = it_->subscribe("image", static_cast<uint32_t>(queue_size_), &PreprocessorNodelet::imageCb, this, hints);
+    std::string error;
+    sub_ = subscribeTransported(*it_, "image", static_cast<uint32_t>(queue_size_), &PreprocessorNodelet::imageCb, this,
+                           getPrivateNodeHandle(), &error);
+    if (!error.empty())
+      NODELET_ERROR("Images on %s: %s", image_topic_.c_str(), error.c_str());
+    transport_error_ = error;
   }
 }
 
@@ -200,7 +209,16 @@ void PreprocessorNodelet::dropImage(ImageProblem kind, const std::string& senten
 void PreprocessorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
 {
   const uint64_t images_in = published_ + dropped_.count();
-  if (images_in == 0)
+  std::string transport_error;
+  {
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    transport_error = transport_error_;
+  }
+  if (!transport_error.empty())
+  {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "not subscribed to " + image_topic_ + ": " + transport_error);
+  }
+  else if (images_in == 0)
   {
     if (pub_.getNumSubscribers() == 0)
       stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "idle: nothing subscribes to " + pub_.getTopic());

@@ -303,6 +303,45 @@ class RobustnessTest(unittest.TestCase):
         finally:
             rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
 
+    def test_a_transport_whose_plugin_is_missing_is_named_and_the_manager_lives_on(self):
+        # ~image_transport compressed without compressed_image_transport installed: image_transport threw when
+        # the preprocessor subscribed (on its first subscriber), and the exception ended the whole manager (a
+        # new user's teach.launch). Now each nodelet names the transport at load and takes no images; the
+        # manager and the nodelets in it go on. (A name no plugin has: the same path wherever this runs.)
+        missing = "~image_transport 'no_such_transport' cannot be used: image_transport cannot load its plugin"
+        said_before = len(self.rosout.matching(missing, Log.ERROR))
+        pre, rec = '/repeat/transport_preprocessor', '/repeat/transport_recorder'
+        rospy.set_param(pre + '/image_transport', 'no_such_transport')
+        output = '/transport_test/image_preprocessed'
+        loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
+            pre, 'along_route_localization/preprocessor', ['/repeat/image', '/repeat/image_preprocessed'],
+            ['/repeat_camera/image_raw', output], [], '')
+        self.assertTrue(loaded.success)
+        downstream = fx.Collector(output, Image)  # a subscriber: the preprocessor subscribes to its camera now
+        try:
+            self.load_recorder(rec, {'map': os.path.join(self.tmp, 'transport_map.bag'), 'autostart': True,
+                                     'image_transport': 'no_such_transport'})
+            fx.wait_for_service(rec + '/start')
+            fx.wait_for(lambda: len(self.rosout.matching(missing, Log.ERROR)) >= said_before + 2, 10,
+                        'both nodelets to name the transport')
+            status = self.diagnostics.next_status('repeat/transport_preprocessor: preprocessing', lambda s: True,
+                                                  'the preprocessor to report')
+            self.assertEqual(status.level, DiagnosticStatus.ERROR)
+            self.assertIn('not subscribed to /repeat_camera/image_raw: ' + missing, status.message)
+            refused = rospy.ServiceProxy(rec + '/start', Trigger)()
+            self.assertFalse(refused.success, refused.message)
+            self.assertIn('cannot take images from /repeat/image_preprocessed: ' + missing, refused.message)
+            # The manager lives: the repeat's own chain still localizes a frame published now.
+            before = len(self.localizations.snapshot())
+            self.camera.publish(self.good(3))
+            fx.wait_for(lambda: len(self.localizations.snapshot()) > before, 20, 'a localization after the loads')
+            self.assertEqual(downstream.snapshot(), [])
+        finally:
+            downstream.subscriber.unregister()
+            for name in (pre, rec):
+                rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
+                rospy.delete_param(name)
+
     def test_a_recorders_autostart_given_as_0_or_maybe_is_read_or_named(self):
         # teach.launch autostart:=0 reached the recorder as the integer 0, which it ignored without a word:
         # it recorded from the first frame. 0 is false now; a value that is no bool is named.
