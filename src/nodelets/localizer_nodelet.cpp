@@ -125,6 +125,7 @@ private:
   // A frame of this map's drive was localized: a restart (a refused map accepted again) is then in the
   // middle of the drive, and does not assume the route start.
   bool drive_localized_ = false;
+  ros::Time last_frame_received_;  // ROS time when the last frame was localized (loadMap: mid-drive or not)
   bool resumed_mid_drive_ = false;  // restarted so, and no frame processed since
   LocalizationResult last_result_;
   StandstillDetector standstill_;  // the motion topic's samples; used only when motion_sub_ is set
@@ -465,16 +466,25 @@ bool LocalizerNodelet::loadMap(const std::string& path, std::string* message)
     map_width_ = map_->width();
   }
   localizer_.reset();
-  drive_localized_ = resumed_mid_drive_ = false;
+  // Mid-drive (a frame localized within the period of ~min_rate, the slowest camera expected): the robot is
+  // somewhere along the route, not at start_keyframe, so the new map starts from an unknown place (a global
+  // search), as after a refusal mid-drive; a next drive (stamps going back) starts at start_keyframe. It
+  // restarted at start_keyframe: a repeat at keyframe 56 answered keyframes 0-35 at "tracking" for 3.5 s.
+  const bool mid_drive = drive_localized_ && !last_frame_received_.isZero() &&
+                         (min_rate_hz_ <= 0.0 || (ros::Time::now() - last_frame_received_).toSec() <= 1.0 / min_rate_hz_);
+  drive_localized_ = mid_drive;
+  resumed_mid_drive_ = false;
   useMapIfAccepted();
   if (!localizer_)
   {
     *message = refusal_;
     return false;
   }
-  last_stamp_ = ros::Time();
+  if (!mid_drive)
+    last_stamp_ = ros::Time();  // mid-drive it is kept: a stamp before it is a next drive, from the start
   *message = "loaded " + path + ": " + std::to_string(map_->size()) + " keyframes of " +
-             std::to_string(map_->width()) + "x" + std::to_string(map_->height()) + " px";
+             std::to_string(map_->width()) + "x" + std::to_string(map_->height()) + " px" +
+             (mid_drive ? "; localizing from an unknown place (a global search), since it was loaded mid-drive" : "");
   NODELET_INFO("%s", message->c_str());
   return true;
 }
@@ -710,6 +720,7 @@ void LocalizerNodelet::imageCb(const sensor_msgs::ImageConstPtr& msg)
 
   last_result_ = result;
   drive_localized_ = true;
+  last_frame_received_ = ros::Time::now();
   dropped_.used();
   ++frames_;
   ++frames_in_period_;

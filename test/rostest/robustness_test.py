@@ -421,6 +421,35 @@ class RobustnessTest(unittest.TestCase):
         self.assertEqual(after[0].status, Localization.STATUS_INITIALIZING, answers)
         self.assertEqual([a for a in answers if a[0] == Localization.STATUS_TRACKING and a[1] < 15], [], answers)
 
+    def test_a_map_loaded_mid_drive_starts_from_an_unknown_place(self):
+        # A ~load_map while the images came (a new user's repeat at keyframe 56) started at start_keyframe 0 and
+        # answered keyframes 0-35 at "tracking" for 3.5 s. Mid-drive the place is unknown: a global search. A
+        # load once the images have stopped for longer than the period of ~min_rate (1 Hz) is a next drive.
+        def send(indices):
+            sent = []
+            for i in indices:
+                sent.append(self.good(i))
+                self.camera.publish(sent[-1])
+                time.sleep(0.05)
+            return sent
+        load_map = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)
+        first = send(range(0, 20))
+        self.wait_for_stamp(self.localizations, first[-1].header.stamp, 'the first half of the drive')
+        loaded = load_map(self.map_path)
+        self.assertTrue(loaded.success, loaded.message)
+        self.assertIn('; localizing from an unknown place (a global search), since it was loaded mid-drive',
+                      loaded.message)
+        second = send(range(20, FRAMES))
+        self.wait_for_stamp(self.localizations, second[-1].header.stamp, 'the second half of the drive')
+        after = [m for m in self.localizations.snapshot() if m.header.stamp >= second[0].header.stamp]
+        answers = [(m.status, m.keyframe) for m in after]
+        self.assertEqual(after[0].status, Localization.STATUS_INITIALIZING, answers)
+        self.assertEqual([a for a in answers if a[0] == Localization.STATUS_TRACKING and a[1] < 15], [], answers)
+        time.sleep(1.5)  # no image for longer than 1 / min_rate
+        between = load_map(self.map_path)
+        self.assertTrue(between.success, between.message)
+        self.assertNotIn('mid-drive', between.message)
+
     def test_frames_smaller_than_the_output_pass_enlarged_with_a_warning(self):
         dot = self.stamped(image('mono8', 1, 1, b'\x80'))
         self.camera.publish(dot)
