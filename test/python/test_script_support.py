@@ -38,6 +38,30 @@ class TestResultsTest(unittest.TestCase):
             # failed: 1 + 1 + 1 + 1 (MISSING) + 1 (does not parse); skipped: 1 (disabled) + 2
             self.assertEqual(script_support.count_test_results(tmp), (15, 5, 3))
 
+    def test_a_skip_counts_whether_the_suite_or_only_its_test_case_says_so(self):
+        # GoogleTest 1.10 (Ubuntu 20.04) writes a skip only on the test case, result="skipped", and counts it
+        # in tests=; its skips were counted as passed. 1.12 (Debian 12) says it on both: counted once.
+        files = {
+            "gtest-focal.xml": '<testsuites><testsuite name="A" tests="3" failures="0" errors="0" disabled="1">'
+                               '<testcase name="a" status="run" result="completed"/>'
+                               '<testcase name="b" status="run" result="skipped"/>'
+                               '<testcase name="DISABLED_c" status="notrun" result="suppressed"/>'
+                               '</testsuite></testsuites>',
+            "gtest-bookworm.xml": '<testsuites><testsuite name="B" tests="2" failures="0" errors="0" skipped="1">'
+                                  '<testcase name="d" status="run" result="completed"/>'
+                                  '<testcase name="e" status="run" result="skipped"><skipped message=""/></testcase>'
+                                  '</testsuite></testsuites>',
+            "rosunit-python.xml": '<testsuite tests="2" failures="0" errors="0">'
+                                  '<testcase name="f"/><testcase name="g"><skipped type="skip"/></testcase>'
+                                  '</testsuite>',
+        }
+        with tempfile.TemporaryDirectory() as tmp:
+            for name, text in files.items():
+                with open(os.path.join(tmp, name), "w") as f:
+                    f.write(text)
+            # tests 3 + 2 + 2; skipped: b and DISABLED_c, e, g
+            self.assertEqual(script_support.count_test_results(tmp), (7, 0, 4))
+
 
 class RunMainTest(unittest.TestCase):
     """run_main: into a closed pipe a script ends with 141 and no traceback, its own `finally` blocks run
