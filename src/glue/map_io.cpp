@@ -304,6 +304,9 @@ public:
     }
   }
 
+  /// The keyframes read so far (a cut or corrupt file: those before the damage).
+  size_t keyframesRead() const { return map_.size() + early_keyframes_.size(); }
+
   /// The topics of the connections seen so far (sorted, each once).
   std::vector<std::string> topics() const
   {
@@ -618,14 +621,23 @@ RouteMap readMap(const std::string& path, std::map<int, TaughtMotion>* motion)
   }
   catch (const CorruptMap& e)
   {
+    // `rosbag reindex` keeps the chunks before the damage: with no keyframe among them (a finished map is
+    // one chunk), advising it sent a user round in a circle (the reindexed file held nothing, and said so).
+    const size_t before = contents.keyframesRead();
+    const std::string kept = std::to_string(before) + (before == 1 ? " keyframe" : " keyframes");
+    std::string advice;
+    if (endsWith(path, ".active"))
+      advice = before > 0 ? "; a recording was interrupted: `rosbag reindex " + path + "` may recover the " + kept +
+                                " it had flushed before the damage" :
+                            "; a recording was interrupted before any keyframe lay complete in it: nothing to recover";
+    else
+      advice = "; was it copied only in part? Copy it again (a map the recorder finished is complete; an "
+               "interrupted recording leaves MAP.active)" +
+               (before > 0 ? ", or keep the " + kept + " before the damage with `rosbag reindex " + path + "`" :
+                             std::string(": no keyframe lies complete before the damage, so `rosbag reindex` "
+                                         "recovers none"));
     throw MapError("map file " + inQuotes(path) + " is truncated or corrupt at byte " +
-                   std::to_string(scanner.offset()) + " of " + std::to_string(size) + ": " + e.what() +
-                   (endsWith(path, ".active") ?
-                        "; a recording was interrupted: `rosbag reindex " + path +
-                            "` may recover the keyframes it had flushed" :
-                        "; was it copied only in part? Copy it again, or keep the keyframes before the cut with "
-                        "`rosbag reindex " + path + "` (a map the recorder finished is complete; an interrupted "
-                        "recording leaves MAP.active)"));
+                   std::to_string(scanner.offset()) + " of " + std::to_string(size) + ": " + e.what() + advice);
   }
   catch (const std::bad_alloc&)
   {

@@ -648,8 +648,9 @@ TEST_F(MapIoTest, MissingEmptyDirectoryAndForeignFilesAreNamed)
   EXPECT_NE(readError(path("text.bag")).find("not a rosbag"), std::string::npos);
   writeAll(path("short.bag"), "#ROSBAG");
   EXPECT_NE(readError(path("short.bag")).find("truncated"), std::string::npos);
-  // A finished map cut short was copied in part: copy it again (reindexing keeps what came before the cut).
-  // A recording's .active file cut short was interrupted.
+  // A finished map cut short was copied in part: copy it again. A recording's .active file cut short was
+  // interrupted. A finished map is one chunk: cut in it, no keyframe is left for `rosbag reindex` to keep (it
+  // was advised, and the reindexed file held nothing).
   const std::string whole = readAll(writeTestMap("whole.bag", 4));
   writeAll(path("half.bag"), whole.substr(0, whole.size() / 2));
   writeAll(path("half.bag.active"), whole.substr(0, whole.size() / 2));
@@ -657,10 +658,40 @@ TEST_F(MapIoTest, MissingEmptyDirectoryAndForeignFilesAreNamed)
   EXPECT_NE(copied.find("truncated or corrupt"), std::string::npos) << copied;
   EXPECT_NE(copied.find("copied only in part"), std::string::npos) << copied;
   EXPECT_NE(copied.find("Copy it again"), std::string::npos) << copied;
+  EXPECT_NE(copied.find("no keyframe lies complete before the damage, so `rosbag reindex` recovers none"),
+            std::string::npos)
+      << copied;
   EXPECT_EQ(copied.find("a recording was interrupted"), std::string::npos) << copied;
-  EXPECT_NE(interrupted.find("a recording was interrupted: `rosbag reindex " + path("half.bag.active")),
+  EXPECT_NE(interrupted.find("a recording was interrupted before any keyframe lay complete in it: nothing to recover"),
             std::string::npos)
       << interrupted;
+  // Flushed twice (4 keyframes, then 2) and cut in the second chunk: the first chunk's 4 can be kept.
+  {
+    cv::RNG rng(3);
+    MapWriter writer(path("two_chunks.bag"), PreprocessingParams());
+    for (int k = 0; k < 4; ++k)
+      writer.add(keyframeMessage(randomKeyframe(rng), 10 + k));
+    writer.flush();
+    for (int k = 0; k < 2; ++k)
+      writer.add(keyframeMessage(randomKeyframe(rng), 20 + k));
+    writer.flush();
+    const std::string two = readAll(path("two_chunks.bag"));
+    // Cut 3000 bytes into the second chunk record (its header holds the field op=0x05, as the first's does).
+    const std::string chunk_op("op=\x05", 4);
+    const size_t second_chunk = two.find(chunk_op, two.find(chunk_op) + 1);
+    ASSERT_NE(second_chunk, std::string::npos);
+    ASSERT_LT(second_chunk + 3000, two.size());
+    writeAll(path("cut_two.bag"), two.substr(0, second_chunk + 3000));
+    writeAll(path("cut_two.bag.active"), two.substr(0, second_chunk + 3000));
+  }
+  const std::string kept = readError(path("cut_two.bag")), flushed = readError(path("cut_two.bag.active"));
+  EXPECT_NE(kept.find("or keep the 4 keyframes before the damage with `rosbag reindex " + path("cut_two.bag") + "`"),
+            std::string::npos)
+      << kept;
+  EXPECT_NE(flushed.find("a recording was interrupted: `rosbag reindex " + path("cut_two.bag.active") +
+                         "` may recover the 4 keyframes it had flushed before the damage"),
+            std::string::npos)
+      << flushed;
   EXPECT_NE(readError("").find("no map file"), std::string::npos);
 }
 
