@@ -17,6 +17,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 
 #include "glue/image_message.h"
@@ -137,7 +138,7 @@ std::string imageTopicOf(rosbag::Bag& bag, const std::string& path, const std::s
   std::set<std::string> topics;
   rosbag::View view(bag);
   for (const rosbag::ConnectionInfo* info : view.getConnections())
-    if (info->datatype == "sensor_msgs/Image")
+    if (info->datatype == "sensor_msgs/Image" || info->datatype == "sensor_msgs/CompressedImage")
       topics.insert(info->topic);
   if (topics.size() != 1)
   {
@@ -145,8 +146,8 @@ std::string imageTopicOf(rosbag::Bag& bag, const std::string& path, const std::s
     for (const std::string& t : topics)
       names += " " + t;
     throw std::runtime_error("bag '" + path + "' has " + std::to_string(topics.size()) +
-                             " sensor_msgs/Image topics (" + (names.empty() ? " none" : names) +
-                             " ); choose one with --topic");
+                             " image topics, sensor_msgs/Image or CompressedImage (" +
+                             (names.empty() ? " none" : names) + " ); choose one with --topic");
   }
   return *topics.begin();
 }
@@ -243,33 +244,65 @@ std::vector<cv::Mat> preprocessBag(rosbag::Bag& bag, const std::string& path, co
              << m.getTime() << ")";
         return text.str();
       };
-      const sensor_msgs::Image::ConstPtr msg = m.instantiate<sensor_msgs::Image>();
-      if (!msg)
-        throw std::runtime_error(where() + ": not a sensor_msgs/Image but " + m.getDataType());
+      // The image as the camera gave it, and its header: a sensor_msgs/Image wrapped as it is, or a
+      // CompressedImage (what image_transport's compressed plugin and many camera bags hold) decoded.
+      cv::Mat pixels;
       PixelFormat format;
-      std::string problem;
-      if (imageMessageProblem(*msg, &format, &problem) != ImageProblem::kNone)
-        throw std::runtime_error(where() + ": " + problem);
+      std_msgs::Header header;
+      cv_bridge::CvImageConstPtr wrapped;  // keeps a wrapped Image's data alive
+      const sensor_msgs::Image::ConstPtr msg = m.instantiate<sensor_msgs::Image>();
+      const sensor_msgs::CompressedImage::ConstPtr compressed_msg =
+          msg ? sensor_msgs::CompressedImage::ConstPtr() : m.instantiate<sensor_msgs::CompressedImage>();
+      if (msg)
+      {
+        std::string problem;
+        if (imageMessageProblem(*msg, &format, &problem) != ImageProblem::kNone)
+          throw std::runtime_error(where() + ": " + problem);
+        try
+        {
+          wrapped = cv_bridge::toCvShare(msg);
+        }
+        catch (const std::exception& e)  // cv_bridge::Exception
+        {
+          throw std::runtime_error(where() + ": " + e.what());
+        }
+        pixels = wrapped->image;
+        header = msg->header;
+      }
+      else if (compressed_msg)
+      {
+        if (!compressed_msg->data.empty())
+          pixels = cv::imdecode(compressed_msg->data, cv::IMREAD_UNCHANGED);
+        if (pixels.empty())
+          throw std::runtime_error(where() + ": its " + std::to_string(compressed_msg->data.size()) +
+                                   " bytes of format '" + compressed_msg->format +
+                                   "' do not decode as an image (a compressedDepth image, or damaged data)");
+        format = formatOfDecoded(pixels, where());
+        header = compressed_msg->header;
+      }
+      else
+      {
+        throw std::runtime_error(where() + ": not a sensor_msgs/Image or CompressedImage but " + m.getDataType());
+      }
       try
       {
-        const cv_bridge::CvImageConstPtr image = cv_bridge::toCvShare(msg);
         std::string warning;
-        if (format == PixelFormat::kMono32F && floatOutsideUnitRange(image->image, &warning) && clipped_frames++ == 0)
+        if (format == PixelFormat::kMono32F && floatOutsideUnitRange(pixels, &warning) && clipped_frames++ == 0)
           std::cerr << "warning: " << where() << ": " << warning << " (scale the images to [0, 1]); "
                     << "the bag's other such frames are counted, not named\n";
-        if (inputSmallerThanOutput(image->image.cols, image->image.rows, params, &warning) && enlarged_frames++ == 0)
-          std::cerr << "warning: " << where() << ": a " << msg->width << "x" << msg->height << " image " << warning
+        if (inputSmallerThanOutput(pixels.cols, pixels.rows, params, &warning) && enlarged_frames++ == 0)
+          std::cerr << "warning: " << where() << ": a " << pixels.cols << "x" << pixels.rows << " image " << warning
                     << "; the bag's other such frames are counted, not named\n";
-        sizes.push_back(image->image.size());
+        sizes.push_back(pixels.size());
         frames.emplace_back();
-        preprocessor.process(image->image, format, frames.back());
+        preprocessor.process(pixels, format, frames.back());
       }
-      catch (const std::exception& e)  // PreprocessingError (e.g. NaN pixels), cv_bridge::Exception
+      catch (const std::exception& e)  // PreprocessingError (e.g. NaN pixels)
       {
         throw std::runtime_error(where() + ": " + e.what());
       }
       if (stamps_ns)
-        stamps_ns->push_back(static_cast<int64_t>(msg->header.stamp.toNSec()));
+        stamps_ns->push_back(static_cast<int64_t>(header.stamp.toNSec()));
       if (progress)
         progress(frames.size(), view.size());
     }

@@ -525,6 +525,22 @@ class BagInputTest(unittest.TestCase):
         again, _, _ = self.score([written, "--identity"])
         self.same_scores(again, from_csv)
 
+    def test_a_compressed_camera_bag_scores_as_its_csv(self):
+        # The camera recorded through image_transport's compressed plugin: sensor_msgs/CompressedImage, whose
+        # header stamps the Localization messages carry as well. It was "no sensor_msgs/Image topic".
+        import rosbag
+        from sensor_msgs.msg import CompressedImage
+        compressed_bag = os.path.join(self.tmp, "repeat_compressed.bag")
+        with rosbag.Bag(self.query_bag) as source, rosbag.Bag(compressed_bag, "w") as target:
+            for _, image, t in source.read_messages():
+                msg = CompressedImage(format="png", data=b"\x89PNG")
+                msg.header.stamp = image.header.stamp
+                target.write("/camera/image_raw/compressed", msg, t)
+        m, _, _ = self.score(["--localization-bag", self.localization_bag, "--query-bag", compressed_bag,
+                              "--identity"])
+        from_csv, _, _ = self.score([self.results, "--identity"])
+        self.same_scores(m, from_csv)
+
     def test_topics_are_found_or_named(self):
         import rosbag
         from sensor_msgs.msg import Image
@@ -533,7 +549,8 @@ class BagInputTest(unittest.TestCase):
             bag.write("/other_camera/image_raw", image, image.header.stamp)
         code, _, err = self.run_main(self.bags("--identity"))
         self.assertEqual(code, 2)
-        self.assertIn("has 2 sensor_msgs/Image topics (/camera/image_raw, /other_camera/image_raw): name one with "
+        self.assertIn("has 2 sensor_msgs/Image or sensor_msgs/CompressedImage topics (/camera/image_raw, "
+                      "/other_camera/image_raw): name one with "
                       "--camera-topic", err)
         m, _, _ = self.score(self.bags("--identity", "--camera-topic", "/camera/image_raw"))
         self.assertAlmostEqual(m["within"]["1"], 4 / 6)
