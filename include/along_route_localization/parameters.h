@@ -191,7 +191,7 @@ bool applyParameterEntries(const std::string& path, const std::vector<ParameterE
 /// (the parameter keeps its value), a number outside its working range is corrected
 /// (setParameterChecked); each is a sentence in *warnings, naming the file, line and parameter. The
 /// map_recorder: and route_follower: sections are checked the same way, as their nodelets read them, and
-/// not applied. Returns false with *error only for a name given twice in one section (which value was
+/// not applied; a nodelet's own setting in its section (nodeletSettingNames) is taken without a word. Returns false with *error only for a name given twice in one section (which value was
 /// meant is unknown).
 bool applyParameterEntriesChecked(const std::string& path, const std::vector<ParameterEntry>& entries,
                                   PreprocessingParams* preprocessing, LocalizerParams* localizer,

@@ -936,9 +936,7 @@ bool applyParameterEntriesChecked(const std::string& path, const std::vector<Par
     if (!sentence.empty())
       sentence += "; ignored";
     else if (isNodeletSetting(entry))
-      sentence = localizingSection(entry.section)
-                     ? "'" + entry.name + "' is a setting of the " + entry.section + " nodelet; ignored here"
-                     : std::string();  // the section is not used here: nothing to say
+      sentence.clear();  // the nodelet's own (a queue, a transport, a rate): right there, of no use offline
     else if (!localizingSection(entry.section))
       sentence = setParameterChecked(entry.name, entry.value, &others);
     else if (spec && (spec->group == ParameterGroup::kMapRecorder || spec->group == ParameterGroup::kRouteFollower))

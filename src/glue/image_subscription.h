@@ -27,8 +27,9 @@ std::string transportProblem(const ros::NodeHandle& private_nh);
 /// here it returns an empty subscriber instead, with *error saying which transport is missing and what to do.
 template <class T>
 image_transport::Subscriber subscribeTransported(image_transport::ImageTransport& it, const std::string& topic,
-                                            uint32_t queue_size, void (T::*callback)(const sensor_msgs::ImageConstPtr&),
-                                            T* object, const ros::NodeHandle& private_nh, std::string* error)
+                                                 uint32_t queue_size,
+                                                 void (T::*callback)(const sensor_msgs::ImageConstPtr&), T* object,
+                                                 const ros::NodeHandle& private_nh, std::string* error)
 {
   error->clear();
   try

@@ -129,7 +129,7 @@ TEST_F(ParameterFile, EveryNodeletsSectionIsCheckedAsItsNodeletReadsItAndOnlyThe
   ASSERT_TRUE(applyChecked("preprocessor:\n"          // 1
                            "  sky_fraction: 0.25\n"    // 2
                            "  max_step: 3\n"           // 3: the localizer's, misplaced
-                           "  queue_size: 4\n"         // 4: the preprocessor nodelet's own setting
+                           "  queue_size: 4\n"         // 4: the preprocessor nodelet's own setting: fine
                            "map_recorder:\n"           // 5
                            "  every_nth: 0\n"          // 6: below 1
                            "  autostart: true\n"       // 7: the recorder nodelet's own setting
@@ -147,7 +147,6 @@ TEST_F(ParameterFile, EveryNodeletsSectionIsCheckedAsItsNodeletReadsItAndOnlyThe
   const std::vector<std::string> expected = {
     at + "3: 'max_step' is the localizer's parameter but is under preprocessor:, where the launch files set it for "
          "the preprocessor, which does not read it: move it under localizer:; ignored",
-    at + "4: 'queue_size' is a setting of the preprocessor nodelet; ignored here",
     at + "6: every_nth 0 is outside 1 .. 1000 frames; using 1",
     at + "8: 'homing_gain' is the route_follower's parameter but is under map_recorder:, where the launch files set "
          "it for the map_recorder, which does not read it: move it under route_follower:; ignored",
