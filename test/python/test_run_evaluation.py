@@ -94,7 +94,12 @@ class BadInputTest(unittest.TestCase):
             candidates = os.path.join(tmp, "candidates.txt")
             with open(candidates, "w") as f:
                 f.write("defaults:\ntypo: max_stpe=3\n")
+            typo = os.path.join(tmp, "typo.yaml")
+            with open(typo, "w") as f:
+                f.write("localizer:\n  max_stepp: 3\n")
             for options, reason in ((["--folds", "0", "--set", "max_step=0"], "parameter 'max_step' must be in 1 .. 16"),
+                                    (["--folds", "0", "--params", typo],
+                                     "unknown parameter 'max_stepp' refused (did you mean max_step?)"),
                                     (["--candidates", candidates], "candidate typo: "),
                                     (["--candidates", candidates], "unknown parameter 'max_stpe'"),
                                     (["--candidates", os.path.join(tmp, "none.txt")], "none.txt")):
