@@ -231,6 +231,25 @@ class CommandLineTest(unittest.TestCase):
             self.assertAlmostEqual(messages[1][0].header.stamp.to_sec(), 50.05, places=6)
         self.assertFalse(any(n.endswith(".tmp") for n in os.listdir(out)))
 
+    def test_a_rerun_into_the_same_folder_leaves_only_its_own_route(self):
+        # A rerun with fewer frames left the earlier run's extra teach PNGs (and its bags, with --no-bags)
+        # beside the new ground truth: localize_offline loaded 300 keyframes, 280 of another world.
+        out = os.path.join(self.tmp, "route")
+        base = ["--output", out, "--width", "64", "--height", "32", "--progress", "off", "--images"]
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            self.assertEqual(generate_route.main(base + ["--teach-frames", "40", "--seed", "1"]), 0)
+        self.assertEqual(len(os.listdir(os.path.join(out, "teach_images"))), 40)
+        self.assertTrue(os.path.exists(os.path.join(out, "teach.bag")))
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
+            self.assertEqual(generate_route.main(base + ["--teach-frames", "20", "--seed", "2", "--no-bags"]), 0)
+        self.assertIn("removed the earlier route in %s: ground_truth.csv, teach.bag, repeat.bag, teach_images/ "
+                      "(40 PNGs), repeat_images/" % out, err.getvalue())
+        with open(os.path.join(out, "ground_truth.csv")) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(sorted(os.listdir(out)), ["ground_truth.csv", "repeat_images", "teach_images"])
+        self.assertEqual(len(os.listdir(os.path.join(out, "teach_images"))), 20)
+        self.assertEqual(len(os.listdir(os.path.join(out, "repeat_images"))), len(rows))
+
     def test_progress_modes(self):
         def run(mode, total, isatty):
             stream = io.StringIO()
