@@ -266,6 +266,23 @@ class WriteTest(unittest.TestCase):
         self.assertEqual(code, 0, err)
         self.assertEqual(sorted(os.listdir(os.path.join(self.out, "aligned"))), ["ground_truth.csv", "map", "query"])
 
+    def test_a_scenario_stopped_half_way_has_no_ground_truth(self):
+        # An interrupted distractors scenario kept its ground truth beside part of its map, and run_benchmarks
+        # timed it as the whole. The ground truth is now written last: a rerun stopped while it writes the
+        # distractors (here by an error there) leaves the scenario without one, the earlier run's gone too.
+        args = ["--output", self.out, "--data", self.data, "--scenarios", "distractors", "--distractors", "30"]
+        code, err = self.run_main(args)
+        self.assertEqual(code, 0, err)
+        folder = os.path.join(self.out, "distractors")
+        self.assertEqual(sorted(os.listdir(folder)), ["distractors.csv", "ground_truth.csv", "map", "query"])
+        from unittest import mock
+        with mock.patch.object(scenarios, "write_distractors", side_effect=scenarios.InputError("stopped here")):
+            code, err = self.run_main(args)
+        self.assertEqual(code, 2, err)
+        self.assertIn("stopped here", err)
+        self.assertNotIn("ground_truth.csv", os.listdir(folder))
+        self.assertNotIn("distractors.csv", os.listdir(folder))
+
     def test_rerun_replaces_old_frames(self):
         self.assertEqual(self.run_main(["--output", self.out, "--data", self.data, "--scenarios", "aligned"])[0], 0)
         self.assertEqual(self.run_main(["--output", self.out, "--data", self.data, "--scenarios", "aligned",

@@ -15,10 +15,10 @@ BASH_SCRIPTS = [name for name in SCRIPTS if open(os.path.join(SCRIPTS_DIR, name)
 PYTHON_SCRIPTS = [name for name in SCRIPTS if name not in BASH_SCRIPTS]
 
 
-def run(name, *args, cwd):
+def run(name, *args, cwd, extra_env=None):
     script = os.path.join(SCRIPTS_DIR, name)
     interpreter = ['bash'] if name in BASH_SCRIPTS else ['/usr/bin/python3']
-    env = dict(os.environ, HOME=cwd, PATH='/usr/bin:' + os.environ.get('PATH', ''))
+    env = dict(os.environ, HOME=cwd, PATH='/usr/bin:' + os.environ.get('PATH', ''), **(extra_env or {}))
     return subprocess.run(interpreter + [script] + list(args), cwd=cwd, env=env, stdout=subprocess.PIPE,
                           stderr=subprocess.PIPE, universal_newlines=True, timeout=60)
 
@@ -150,13 +150,22 @@ class RunBenchmarksExitTest(unittest.TestCase):
 
     def test_a_failing_benchmark_exits_non_zero_after_its_table(self):
         with tempfile.TemporaryDirectory() as tmp:
-            common = ['--filter', 'BM_None', '--nordland', os.path.join(tmp, 'none'), '--repetitions', '1']
-            failing = run('run_benchmarks', '--benchmark', self.fake_benchmark(tmp, 3), *common, cwd=tmp)
+            common = ['--filter', 'BM_None', '--repetitions', '1']
+            no_data = {'ALONG_ROUTE_NORDLAND': os.path.join(tmp, 'none')}  # the default's frames missing: left out
+            failing = run('run_benchmarks', '--benchmark', self.fake_benchmark(tmp, 3), *common, cwd=tmp,
+                          extra_env=no_data)
             self.assertEqual(failing.returncode, 1, failing.stderr)
             self.assertIn('Times per iteration', failing.stdout)
             self.assertIn('run_benchmarks: the benchmark exited with 3', failing.stderr)
-            passing = run('run_benchmarks', '--benchmark', self.fake_benchmark(tmp, 0), *common, cwd=tmp)
+            passing = run('run_benchmarks', '--benchmark', self.fake_benchmark(tmp, 0), *common, cwd=tmp,
+                          extra_env=no_data)
             self.assertEqual(passing.returncode, 0, passing.stderr)
+            # Named by hand, a folder without the frames is a mistake: it printed an ERROR row and exited 0.
+            named = run('run_benchmarks', '--benchmark', self.fake_benchmark(tmp, 0), *common, '--nordland',
+                        os.path.join(tmp, 'none'), cwd=tmp)
+            self.assertEqual(named.returncode, 2, named.stderr)
+            self.assertIn('--nordland %s holds no summer/ and winter/ folders' % os.path.join(tmp, 'none'),
+                          named.stderr)
 
     def test_bad_options_are_refused_by_name(self):
         with tempfile.TemporaryDirectory() as tmp:
