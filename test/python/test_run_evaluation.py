@@ -190,6 +190,32 @@ class ParameterSensitivityCommandTest(unittest.TestCase):
             evaluation.parse_args(command[2:])  # exits (SystemExit) on a command it refuses
 
 
+    def test_a_setting_it_would_fail_on_and_an_output_in_the_data_are_refused_before_any_run(self):
+        # A typo in the last setting was found after every setting before it had run; an --output inside the data
+        # folder was written there (run_evaluation and cross_validate refuse both).
+        binary = built_executable("localize_offline")
+        if not binary:
+            self.skipTest("localize_offline not built (source the catkin workspace)")
+        sensitivity = load("parameter_sensitivity")
+        tmp = tempfile.mkdtemp(prefix="test_sensitivity_refusals_")
+        try:
+            data = fake_nordland(os.path.join(tmp, "data"))
+            for options, words in ((["--set-list", ";max_step=3;max_shfit_px=6"],
+                                    "--set-list: setting max_shfit_px=6: "),
+                                   (["--set-list", ";max_step=3;max_shfit_px=6"], "did you mean max_shift_px?"),
+                                   (["--set-list", "", "--output", os.path.join(data, "table.md")],
+                                    "is inside the data folder %s" % data)):
+                err = io.StringIO()
+                with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()) as out:
+                    code = sensitivity.main(["--data", data, "--localize-offline", binary] + options)
+                self.assertEqual(code, 2, err.getvalue())
+                self.assertIn(words, err.getvalue())
+                self.assertEqual(out.getvalue(), "")  # no run, not even the table's header
+            self.assertFalse(os.path.exists(os.path.join(data, "table.md")))
+        finally:
+            shutil.rmtree(tmp)
+
+
 class SpreadTest(unittest.TestCase):
     def test_spread(self):
         spread = evaluation.seed_spread({3: 0.88, 1: 0.90, 2: 0.85}, 0.88)
