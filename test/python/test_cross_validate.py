@@ -269,8 +269,29 @@ class BadInputTest(unittest.TestCase):
             self.assertIn("candidate typo: ", err)
             self.assertIn("unknown parameter 'max_stpe'", err)
             self.assertFalse(os.path.exists(os.path.join(tmp, "cv")), "nothing made before the check")
+            # A candidates file that is not there: named, not a raw "[Errno 2] ...: 'nope.txt'".
+            missing = os.path.join(tmp, "nope.txt")
+            code, err = self.run_main("--data", data, "--output", os.path.join(tmp, "cv"), "--folds", "2",
+                                      "--fold-size", "30", "--candidates", missing, "--localize-offline", binary)
+            self.assertEqual(code, 1)
+            self.assertIn("cross_validate: error: --candidates %s: No such file or directory" % missing, err)
         finally:
             shutil.rmtree(tmp)
+
+    def test_a_run_that_stops_half_way_leaves_no_earlier_tables_beside_its_runs(self):
+        # An earlier run's cv.md stayed beside the runs of one that stopped half way, as if it were theirs.
+        import tempfile
+        earlier = tempfile.mkdtemp(prefix="test_cross_validate_earlier_")
+        self.addCleanup(__import__("shutil").rmtree, earlier)
+        output = os.path.join(earlier, "cv")
+        os.makedirs(output)
+        with open(os.path.join(output, "cv.md"), "w") as f:
+            f.write("an earlier table\n")
+        _, _, code, err = self.folds_made(60, "--output", output)  # the runner writes nothing: it stops
+        self.assertEqual(code, 1, err)
+        self.assertFalse(os.path.exists(os.path.join(output, "cv.md")))
+        with open(os.path.join(output, "cv.previous.md")) as f:
+            self.assertEqual(f.read(), "an earlier table\n")
 
     def folds_made(self, frames, *args):
         """Fake Nordland frames (summer frame k all k, winter 100 + k), then cross_validate with 2 folds of 30 and

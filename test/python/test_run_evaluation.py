@@ -90,7 +90,7 @@ class BadInputTest(unittest.TestCase):
             self.skipTest("localize_offline not built (source the catkin workspace)")
         tmp = tempfile.mkdtemp(prefix="test_run_evaluation_set_")
         try:
-            data = fake_nordland(os.path.join(tmp, "data"))
+            data = fake_nordland(os.path.join(tmp, "data"), 12)  # listed only: the checks come first
             candidates = os.path.join(tmp, "candidates.txt")
             with open(candidates, "w") as f:
                 f.write("defaults:\ntypo: max_stpe=3\n")
@@ -125,6 +125,24 @@ class BadInputTest(unittest.TestCase):
                       evaluation.swapped_heading("winter", "summer"))
         self.assertIn("summer map, winter query: the roles the defaults were chosen in",
                       evaluation.swapped_heading("summer", "winter"))
+
+    def test_frames_beyond_the_data_are_refused_before_any_folder_is_made(self):
+        # make_nordland_scenarios refused --first 1700 --count 200 on fewer frames, but after run_evaluation
+        # had made its output's empty folders.
+        tmp = tempfile.mkdtemp(prefix="test_run_evaluation_range_")
+        try:
+            data = fake_nordland(os.path.join(tmp, "data"), 20)
+            output = os.path.join(tmp, "out")
+            err = io.StringIO()
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                code = evaluation.main(["--data", data, "--output", output, "--first", "15", "--count", "10",
+                                        "--extra-seeds", "none", "--localize-offline", "/bin/true"])
+            self.assertEqual(code, 2, err.getvalue())
+            self.assertIn("--first 15 --count 10 asks for frames up to 24; the data has 20 (frames 0-19)",
+                          err.getvalue())
+            self.assertFalse(os.path.exists(output))
+        finally:
+            shutil.rmtree(tmp)
 
     def test_a_run_that_stops_half_way_leaves_no_earlier_results_beside_its_runs(self):
         # An earlier run's results.md stayed beside the runs an interrupted run had rewritten, as if it were
