@@ -74,6 +74,15 @@ class RobustnessTest(unittest.TestCase):
         msg = self.teach[index % FRAMES]
         return self.stamped(image(msg.encoding, msg.width, msg.height, msg.data, msg.step))
 
+    def send_good(self, indices):
+        """Publishes the good frames of these teach indices on the repeat camera, 20 a second; returns them."""
+        sent = []
+        for i in indices:
+            sent.append(self.good(i))
+            self.camera.publish(sent[-1])
+            time.sleep(0.05)
+        return sent
+
     def wait_for_stamp(self, collector, stamp, what):
         fx.wait_for(lambda: any(m.header.stamp == stamp for m in collector.snapshot()), 20, what)
 
@@ -398,23 +407,16 @@ class RobustnessTest(unittest.TestCase):
         # Issue 33: after the preprocessing was changed and set back mid-drive, the localizer started
         # over at keyframe 0 (start_keyframe) and said tracking there for about 10 frames. The robot is
         # further along: the place is unknown, a global search (initializing) until one is confirmed.
-        def send(indices):
-            sent = []
-            for i in indices:
-                sent.append(self.good(i))
-                self.camera.publish(sent[-1])
-                time.sleep(0.05)
-            return sent
-        first = send(range(0, 20))
+        first = self.send_good(range(0, 20))
         self.wait_for_stamp(self.localizations, first[-1].header.stamp, 'the first half of the drive')
         preprocessor = ReconfigureClient('/repeat/preprocessor', timeout=30)
         preprocessor.update_configuration({'sky_fraction': 0.25})
         try:
-            refused = send([20])
+            refused = self.send_good([20])
             self.wait_for_stamp(self.preprocessed, refused[0].header.stamp, 'a frame made with sky_fraction 0.25')
         finally:
             preprocessor.update_configuration({'sky_fraction': 0.0})
-        second = send(range(21, FRAMES))
+        second = self.send_good(range(21, FRAMES))
         self.wait_for_stamp(self.localizations, second[-1].header.stamp, 'the second half of the drive')
         after = [m for m in self.localizations.snapshot() if m.header.stamp >= second[0].header.stamp]
         answers = [(m.status, m.keyframe) for m in after]
@@ -425,21 +427,14 @@ class RobustnessTest(unittest.TestCase):
         # A ~load_map while the images came (a new user's repeat at keyframe 56) started at start_keyframe 0 and
         # answered keyframes 0-35 at "tracking" for 3.5 s. Mid-drive the place is unknown: a global search. A
         # load once the images have stopped for longer than the period of ~min_rate (1 Hz) is a next drive.
-        def send(indices):
-            sent = []
-            for i in indices:
-                sent.append(self.good(i))
-                self.camera.publish(sent[-1])
-                time.sleep(0.05)
-            return sent
         load_map = rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)
-        first = send(range(0, 20))
+        first = self.send_good(range(0, 20))
         self.wait_for_stamp(self.localizations, first[-1].header.stamp, 'the first half of the drive')
         loaded = load_map(self.map_path)
         self.assertTrue(loaded.success, loaded.message)
         self.assertIn('; localizing from an unknown place (a global search), since it was loaded mid-drive',
                       loaded.message)
-        second = send(range(20, FRAMES))
+        second = self.send_good(range(20, FRAMES))
         self.wait_for_stamp(self.localizations, second[-1].header.stamp, 'the second half of the drive')
         after = [m for m in self.localizations.snapshot() if m.header.stamp >= second[0].header.stamp]
         answers = [(m.status, m.keyframe) for m in after]
