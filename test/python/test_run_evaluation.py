@@ -162,6 +162,8 @@ class BadInputTest(unittest.TestCase):
             os.makedirs(output)
             with open(os.path.join(output, "results.md"), "w") as f:
                 f.write("an earlier evaluation\n")
+            with open(os.path.join(output, "summary.png"), "w") as f:
+                f.write("an earlier plot\n")
             err = io.StringIO()
             with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
                 code = evaluation.main(["--data", data, "--output", output, "--extra-seeds", "none", "--folds", "0",
@@ -171,6 +173,9 @@ class BadInputTest(unittest.TestCase):
             self.assertFalse(os.path.exists(os.path.join(output, "results.md")))
             with open(os.path.join(output, "results.previous.md")) as f:
                 self.assertEqual(f.read(), "an earlier evaluation\n")
+            self.assertFalse(os.path.exists(os.path.join(output, "summary.png")))
+            with open(os.path.join(output, "summary.previous.png")) as f:
+                self.assertEqual(f.read(), "an earlier plot\n")
         finally:
             shutil.rmtree(tmp)
 
