@@ -137,6 +137,8 @@ std::string imageTopicOf(rosbag::Bag& bag, const std::string& path, const std::s
     return topic;
   std::set<std::string> topics;
   rosbag::View view(bag);
+  if (view.size() == 0)  // e.g. a cut map that `rosbag reindex` could keep nothing of
+    throw std::runtime_error("bag '" + path + "' holds no messages");
   for (const rosbag::ConnectionInfo* info : view.getConnections())
     if (info->datatype == "sensor_msgs/Image" || info->datatype == "sensor_msgs/CompressedImage")
       topics.insert(info->topic);

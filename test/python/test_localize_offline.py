@@ -342,6 +342,11 @@ class LocalizeOfflineTest(unittest.TestCase):
         with open(outputs[1]) as f:
             self.assertEqual(f.read(), raw_rows)
         self.assertEqual(len(raw_rows.splitlines()), len(frames) + 1)
+        # A bag with no message at all (what `rosbag reindex` keeps of a map cut in its only chunk) says so,
+        # rather than "0 image topics (none); choose one with --topic".
+        empty = self.write_bag('empty.bag', [])
+        self.assertFails(self.run_runner('--map', self.map_dir, '--query', empty, '--output',
+                                         os.path.join(self.tmp, 'empty.csv')), "bag '%s' holds no messages" % empty)
         broken = self.write_bag('broken.bag', [compressed(cv2.imencode('.png', frames[0])[1].tobytes(), 'png'),
                                                compressed(b'not an image', 'jpeg')])
         self.assertFails(self.run_runner('--map', self.map_dir, '--query', broken, '--output',
