@@ -1,5 +1,7 @@
 #include "glue/private_parameters.h"
 
+#include <ros/master.h>
+
 #include "along_route_localization/parameters.h"
 
 #include <algorithm>
@@ -126,6 +128,27 @@ bool givenParameter(const ros::NodeHandle& private_nh, const std::string& name, 
 }
 
 }  // namespace
+
+std::string motionTopicTypeProblem(const std::string& topic, MotionType type)
+{
+  if (type == MotionType::kNone)
+    return std::string();
+  const std::string expected = type == MotionType::kTwist ? "geometry_msgs/Twist" : "nav_msgs/Odometry";
+  ros::master::V_TopicInfo topics;
+  if (!ros::master::getTopics(topics))
+    return std::string();  // no master to ask: nothing known
+  for (const ros::master::TopicInfo& info : topics)
+  {
+    if (info.name != topic || info.datatype == expected)
+      continue;
+    const std::string reads = info.datatype == "geometry_msgs/Twist" ? " (~motion_type twist reads it)" :
+                              info.datatype == "nav_msgs/Odometry"   ? " (~motion_type odometry reads it)" :
+                                                                       "";
+    return "the motion topic " + topic + " carries " + info.datatype + ", not the " + expected + " ~motion_type " +
+           motionTypeName(type) + " reads" + reads + ": no motion message can come";
+  }
+  return std::string();
+}
 
 std::string motionTypeName(MotionType type)
 {

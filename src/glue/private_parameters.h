@@ -127,6 +127,12 @@ std::string motionTypeName(MotionType type);
 /// ("~motion_type 'cmd_vel' is not one of none | twist | odometry; using twist"); else *problem is empty.
 MotionType readMotionType(const ros::NodeHandle& private_nh, MotionType fallback, std::string* problem);
 
+/// "" unless the master lists `topic` (resolved) with another message type than ~motion_type `type` reads;
+/// then the sentence saying so and which ~motion_type would read it. roscpp drops such a connection with a
+/// line in the publisher's log only, so the motion topic stayed silent without a word (a teach recorded
+/// no taught motion, and the route follower refused the map later).
+std::string motionTopicTypeProblem(const std::string& topic, MotionType type);
+
 /// A static bool parameter as set under private_nh; `fallback` when unset. Takes a bool, the integers 0
 /// and 1 (roslaunch types `value="0"` as an integer, which ros::NodeHandle::param<bool> ignores without a
 /// word: `teach.launch autostart:=0` recorded from the first frame) and the strings true / false / 1 / 0 /

@@ -131,6 +131,8 @@ private:
   uint32_t image_queue_size_ = 100;
   ros::Subscriber params_sub_, odom_sub_, motion_sub_;
   std::string motion_topic_;
+  MotionType motion_type_ = MotionType::kNone;  // set in onInit
+  bool motion_type_warned_ = false;             // the motion topic's type problem was logged (diagnose)
   ros::ServiceServer start_srv_, pause_srv_, finish_srv_;
   std::shared_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostics_timer_;
@@ -290,6 +292,7 @@ void MapRecorderNodelet::onInit()
   params_sub_ = nh.subscribe(params_topic, 1, &MapRecorderNodelet::paramsCb, this);
   odom_sub_ = nh.subscribe("odom", 10, &MapRecorderNodelet::odomCb, this);
   const MotionType motion_type = readMotionType(private_nh, MotionType::kTwist, &problem);
+  motion_type_ = motion_type;
   if (!problem.empty())
     NODELET_ERROR("%s", problem.c_str());
   motion_topic_ = nh.resolveName("motion");  // before the subscription: its callback names it
@@ -595,6 +598,19 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
     std::lock_guard<std::mutex> lock(image_sub_mutex_);
     transport_error = transport_error_;
   }
+  // Keyframes taken while recording and no motion message yet, the motion topic of another type: roscpp says so
+  // only in the publisher's log, and the follower refuses such a map later. (No publisher at all is a teach
+  // without motion, which localizes: not said.)
+  std::string motion_problem;
+  if (state == State::kRecording && motion_sub_ && motion_messages_ == 0 && queued > 0)
+  {
+    motion_problem = motionTopicTypeProblem(motion_topic_, motion_type_);
+    if (!motion_problem.empty() && !motion_type_warned_)
+    {
+      NODELET_ERROR("The keyframes get no taught motion: %s", motion_problem.c_str());
+      motion_type_warned_ = true;
+    }
+  }
   if (map_path_.empty())
     stat.summary(DiagnosticStatus::ERROR, "no ~map parameter: nothing is recorded");
   else if (!transport_error.empty())
@@ -614,6 +630,8 @@ void MapRecorderNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
                  "not recording the frames: " + refused_.lastReason());
   else if (frames_seen_ == 0)
     stat.summary(DiagnosticStatus::WARN, "recording, waiting for images on " + image_topic_);
+  else if (!motion_problem.empty())
+    stat.summary(DiagnosticStatus::WARN, "recording: " + keyframes + ", without taught motion: " + motion_problem);
   else
     stat.summary(DiagnosticStatus::OK, "recording: " + keyframes);
   stat.add("map", map_path_.empty() ? std::string("(none)") : map_path_);
@@ -755,9 +773,15 @@ bool MapRecorderNodelet::finishCb(std_srvs::Trigger::Request& /*req*/, std_srvs:
     res.success = writer_error_.empty() && keyframes_written_ > 0;
     res.message = finish_message_;
   }
+  bool without_motion = res.success && motion_sub_ && keyframes_with_motion_ == 0;
   const std::string lost = lossSentence();
+  lock.unlock();  // the master is asked below: not while the writer thread and the callbacks wait
   res.message += lost;
-  if (res.success && lost.empty())
+  const std::string why = without_motion ? motionTopicTypeProblem(motion_topic_, motion_type_) : std::string();
+  without_motion = !why.empty();
+  if (without_motion)
+    res.message += "; no keyframe has taught motion (" + why + "): it localizes, but the route follower refuses it";
+  if (res.success && lost.empty() && !without_motion)
     NODELET_INFO("~finish: %s", res.message.c_str());
   else
     NODELET_WARN("~finish: %s", res.message.c_str());

@@ -351,6 +351,35 @@ class RobustnessTest(unittest.TestCase):
                 rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
                 rospy.delete_param(name)
 
+    def test_a_motion_topic_of_another_type_is_named_and_finish_says_the_map_has_no_taught_motion(self):
+        # motion:=/ground_truth/odom with motion_type twist: roscpp dropped the connection with a line in the
+        # publisher's log only; ~finish said "holds 3 keyframes" as for a good map, and the follower refused it
+        # later. Now the recorder names the topic's type while recording, and ~finish says so.
+        from nav_msgs.msg import Odometry
+        name, motion = '/repeat/wrongtype_recorder', '/wrongtype_test/odom'
+        odometry = rospy.Publisher(motion, Odometry, queue_size=1, latch=True)
+        odometry.publish(Odometry())
+        path = os.path.join(self.tmp, 'wrongtype_map.bag')
+        try:
+            publish = self.load_recorder(name, {'map': path, 'motion_type': 'twist'},
+                                         '/wrongtype_test/image_preprocessed', seed=4,
+                                         remaps=[('/repeat/motion', motion)])
+            for k in range(3):
+                publish(7000.0 + k)
+            problem = ('the motion topic %s carries nav_msgs/Odometry, not the geometry_msgs/Twist ~motion_type '
+                       'twist reads (~motion_type odometry reads it): no motion message can come' % motion)
+            fx.wait_for(lambda: self.rosout.matching('The keyframes get no taught motion: ' + problem, Log.ERROR),
+                        15, 'the recorder to name the motion topic\'s type')
+            finished = rospy.ServiceProxy(name + '/finish', Trigger)()
+            self.assertTrue(finished.success, finished.message)
+            self.assertIn('; no keyframe has taught motion (%s): it localizes, but the route follower refuses it'
+                          % problem, finished.message)
+        finally:
+            odometry.unregister()
+            rospy.ServiceProxy(MANAGER + '/unload_nodelet', NodeletUnload)(name)
+            rospy.delete_param(name)
+            fx.remove(path)
+
     def test_a_recorders_autostart_given_as_0_or_maybe_is_read_or_named(self):
         # teach.launch autostart:=0 reached the recorder as the integer 0, which it ignored without a word:
         # it recorded from the first frame. 0 is false now; a value that is no bool is named.
@@ -551,7 +580,7 @@ class RobustnessTest(unittest.TestCase):
         self.assertTrue(rospy.ServiceProxy('/repeat/localizer/load_map', LoadMap)(self.map_path).success)
         self.drive_teach_frames(self.localizations, 'localizations from the reloaded localizer', count=20)
 
-    def load_recorder(self, name, params, topic=None, seed=0, records=True):
+    def load_recorder(self, name, params, topic=None, seed=0, records=True, remaps=()):
         """Loads a map recorder `name` into the running manager with the private parameters `params` (`map`
         among them). With `topic`, it records that topic instead of /repeat/image_preprocessed (frames a test
         stamps as it likes then reach no localizer), the repeat preprocessor's parameters announced beside
@@ -568,6 +597,8 @@ class RobustnessTest(unittest.TestCase):
             self.announcers.append(announcer)  # latched: kept for the recorder
             frames = rospy.Publisher(topic, Image, queue_size=100)
             remap_from, remap_to = ['/repeat/image_preprocessed'], [topic]
+        remap_from += [a for a, _ in remaps]
+        remap_to += [b for _, b in remaps]
         loaded = rospy.ServiceProxy(MANAGER + '/load_nodelet', NodeletLoad)(
             name, 'along_route_localization/map_recorder', remap_from, remap_to, [], '')
         self.assertTrue(loaded.success)
