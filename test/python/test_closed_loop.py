@@ -18,6 +18,19 @@ closed_loop = scripts_under_test.load("run_closed_loop")
 generate_route = scripts_under_test.load("generate_route")
 
 
+
+class SummaryLineTest(unittest.TestCase):
+    """The printed line for a run that never converged said "within 0.3 m after never m of route, median after -
+    m" (a new-user trial on a 25 m route)."""
+
+    def test_a_run_that_never_converged_says_so_and_one_that_did_says_where(self):
+        run = {"mode": "homing", "completed": True, "result": "completed", "median_m": 0.05, "p95_m": 0.2,
+               "max_m": 1.0, "converged_after_m": None, "median_after_convergence_m": float("nan")}
+        self.assertTrue(closed_loop.summary_line(run).endswith(", never within 0.3 m for 10 m of route in a row"))
+        run.update(converged_after_m=12.34, median_after_convergence_m=0.0314)
+        self.assertTrue(closed_loop.summary_line(run).endswith(
+            ", within 0.3 m (for 10 m in a row) after 12.3 m of route, median after 0.031 m"))
+
 class StraightRoute:
     """A route along a heading, sampled like generate_route.Route (start, resolution, s, x, y, heading)."""
 
