@@ -244,8 +244,17 @@ void RouteFollowerNodelet::localizationCb(const LocalizationConstPtr& msg)
   input.homing_angle_rad = msg->homing_angle;
   input.informative = msg->query_informative;
   input.keyframe_stamp_ns = static_cast<int64_t>(msg->keyframe_stamp.toNSec());
+  const ros::Time now = ros::Time::now();
+  if (now.isZero())
+  {
+    // use_sim_time before the first /clock: a localization taken at time 0 made the first command's watchdog
+    // say "no localization for 1000.05 s" (the simulator's clock starts at 1000 s).
+    NODELET_WARN_THROTTLE(5.0, "ROS time is 0 (use_sim_time, and no /clock yet): localizations are taken once "
+                               "the clock runs");
+    return;
+  }
   const RouteFollower::State before = follower_->state();
-  follower_->localization(input, ros::Time::now().toSec());
+  follower_->localization(input, now.toSec());
   if (before != follower_->state() && follower_->state() == RouteFollower::State::kFinished)
     NODELET_INFO("End of the route at keyframe %d of %zu: stopping", msg->keyframe, follower_->keyframes());
 }
@@ -275,7 +284,7 @@ std::string withoutNumbers(const std::string& text)
 
 void RouteFollowerNodelet::controlCb(const ros::TimerEvent& /*event*/)
 {
-  if (!follower_)
+  if (!follower_ || ros::Time::now().isZero())  // no clock yet (use_sim_time): nothing to time a command by
     return;
   applyParams();
   const bool was_driving = follower_->driving();
