@@ -59,6 +59,19 @@ def nordland_data_dir(script):
                                          "nordland"))
 
 
+def keep_earlier_outputs(folder, names):
+    """Renames each of `names` in `folder` that an earlier run left (results.md -> results.previous.md), so that
+    a run that stops half way leaves no tables beside runs they do not describe; returns (name, new name) of each
+    one renamed."""
+    moved = []
+    for name in names:
+        stem, extension = os.path.splitext(name)
+        if os.path.exists(os.path.join(folder, name)):
+            os.replace(os.path.join(folder, name), os.path.join(folder, stem + ".previous" + extension))
+            moved.append((name, stem + ".previous" + extension))
+    return moved
+
+
 def inside_folder(path, folder):
     """Whether `path` is `folder` itself or lies anywhere under it, with symlinks resolved and relative paths
     taken from the working folder. Neither has to exist (a folder about to be made is checked too)."""
