@@ -172,10 +172,10 @@ struct ParameterEntry
 /// Reads the entries of a flat YAML mapping ("name: value" per line, '#' comments, optional single
 /// top-level section headers such as "localizer:" whose indented entries are read the same way) without
 /// applying them, each with its section, so the launch files' params_file (sections preprocessor:,
-/// map_recorder:, localizer:, route_follower:) can be given as it is. Returns false with *error naming the file and line when the file cannot be read, a line is not
-/// "name: value", or YAML (which the launch files read the file as) would read it otherwise: a header that
-/// is not one of those four sections, flow style ("localizer: {max_step: 3}"), a tab or an indentation
-/// YAML refuses.
+/// map_recorder:, localizer:, route_follower:) can be given as it is. Returns false with *error naming the
+/// file and line when the file cannot be read, a line is not "name: value", or YAML (which the launch files
+/// read the file as) would read it otherwise: a header that is not one of those four sections, flow style
+/// ("localizer: {max_step: 3}"), a tab or an indentation YAML refuses.
 bool readParameterFile(const std::string& path, std::vector<ParameterEntry>* entries, std::string* error);
 
 /// Applies the entries read from `path` in file order; those of the map_recorder: and route_follower:
@@ -191,8 +191,8 @@ bool applyParameterEntries(const std::string& path, const std::vector<ParameterE
 /// (the parameter keeps its value), a number outside its working range is corrected
 /// (setParameterChecked); each is a sentence in *warnings, naming the file, line and parameter. The
 /// map_recorder: and route_follower: sections are checked the same way, as their nodelets read them, and
-/// not applied; a nodelet's own setting in its section (nodeletSettingNames) is taken without a word. Returns false with *error only for a name given twice in one section (which value was
-/// meant is unknown).
+/// not applied; a nodelet's own setting in its section (nodeletSettingNames) is taken without a word.
+/// Returns false with *error only for a name given twice in one section (which value was meant is unknown).
 bool applyParameterEntriesChecked(const std::string& path, const std::vector<ParameterEntry>& entries,
                                   PreprocessingParams* preprocessing, LocalizerParams* localizer,
                                   std::vector<std::string>* warnings, std::string* error);

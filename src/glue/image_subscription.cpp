@@ -6,10 +6,22 @@
 namespace along_route_localization
 {
 
-std::string transportProblem(const ros::NodeHandle& private_nh)
+namespace
+{
+
+/// The transport ~image_transport names (as TransportHints reads it), raw by default.
+std::string chosenTransport(const ros::NodeHandle& private_nh)
 {
   std::string transport = "raw";
   private_nh.getParam("image_transport", transport);
+  return transport;
+}
+
+}  // namespace
+
+std::string transportProblem(const ros::NodeHandle& private_nh)
+{
+  const std::string transport = chosenTransport(private_nh);
   if (transport == "raw")
     return std::string();
   // As image_transport looks its subscriber plugins up: "image_transport/<name>_sub".
@@ -33,9 +45,7 @@ std::string transportProblem(const ros::NodeHandle& private_nh)
 
 std::string transportLoadSentence(const ros::NodeHandle& private_nh, const std::string& what)
 {
-  std::string transport = "raw";
-  private_nh.getParam("image_transport", transport);
-  return "~image_transport '" + transport + "' cannot be used: image_transport cannot load its plugin (" + what +
+  return "~image_transport '" + chosenTransport(private_nh) + "' cannot be used: image_transport cannot load its plugin (" + what +
          "). Install it (for compressed: " +
          "ros-noetic-compressed-image-transport, in image_transport_plugins) or set ~image_transport to raw, then " +
          "load this nodelet again; no images are taken until then";

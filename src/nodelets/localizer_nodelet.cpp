@@ -470,8 +470,9 @@ bool LocalizerNodelet::loadMap(const std::string& path, std::string* message)
   // somewhere along the route, not at start_keyframe, so the new map starts from an unknown place (a global
   // search), as after a refusal mid-drive; a next drive (stamps going back) starts at start_keyframe. It
   // restarted at start_keyframe: a repeat at keyframe 56 answered keyframes 0-35 at "tracking" for 3.5 s.
+  const double since_last_frame_s = (ros::Time::now() - last_frame_received_).toSec();
   const bool mid_drive = drive_localized_ && !last_frame_received_.isZero() &&
-                         (min_rate_hz_ <= 0.0 || (ros::Time::now() - last_frame_received_).toSec() <= 1.0 / min_rate_hz_);
+                         (min_rate_hz_ <= 0.0 || since_last_frame_s <= 1.0 / min_rate_hz_);
   drive_localized_ = mid_drive;
   resumed_mid_drive_ = false;
   useMapIfAccepted();
@@ -792,7 +793,8 @@ void LocalizerNodelet::dropFrame(Drop kind, const std::string& sentence)
 void LocalizerNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
 {
   if (!transport_error_.empty())
-    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "not subscribed to " + image_topic_ + ": " + transport_error_);
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                 "not subscribed to " + image_topic_ + ": " + transport_error_);
   else if (!map_)
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
                  map_error_ + "; not listening to " + image_topic_ + " until a map is loaded");

@@ -291,14 +291,13 @@ void MapRecorderNodelet::onInit()
   const std::string params_topic = preprocessingParamsTopic(image_topic_);
   params_sub_ = nh.subscribe(params_topic, 1, &MapRecorderNodelet::paramsCb, this);
   odom_sub_ = nh.subscribe("odom", 10, &MapRecorderNodelet::odomCb, this);
-  const MotionType motion_type = readMotionType(private_nh, MotionType::kTwist, &problem);
-  motion_type_ = motion_type;
+  motion_type_ = readMotionType(private_nh, MotionType::kTwist, &problem);
   if (!problem.empty())
     NODELET_ERROR("%s", problem.c_str());
   motion_topic_ = nh.resolveName("motion");  // before the subscription: its callback names it
-  if (motion_type == MotionType::kTwist)
+  if (motion_type_ == MotionType::kTwist)
     motion_sub_ = nh.subscribe("motion", 100, &MapRecorderNodelet::motionTwistCb, this);
-  else if (motion_type == MotionType::kOdometry)
+  else if (motion_type_ == MotionType::kOdometry)
     motion_sub_ = nh.subscribe("motion", 100, &MapRecorderNodelet::motionOdomCb, this);
   if (autostart)
     subscribeImages();
@@ -773,15 +772,16 @@ bool MapRecorderNodelet::finishCb(std_srvs::Trigger::Request& /*req*/, std_srvs:
     res.success = writer_error_.empty() && keyframes_written_ > 0;
     res.message = finish_message_;
   }
-  bool without_motion = res.success && motion_sub_ && keyframes_with_motion_ == 0;
+  const bool no_keyframe_has_motion = res.success && motion_sub_ && keyframes_with_motion_ == 0;
   const std::string lost = lossSentence();
   lock.unlock();  // the master is asked below: not while the writer thread and the callbacks wait
   res.message += lost;
-  const std::string why = without_motion ? motionTopicTypeProblem(motion_topic_, motion_type_) : std::string();
-  without_motion = !why.empty();
-  if (without_motion)
-    res.message += "; no keyframe has taught motion (" + why + "): it localizes, but the route follower refuses it";
-  if (res.success && lost.empty() && !without_motion)
+  const std::string motion_problem =
+      no_keyframe_has_motion ? motionTopicTypeProblem(motion_topic_, motion_type_) : std::string();
+  if (!motion_problem.empty())
+    res.message += "; no keyframe has taught motion (" + motion_problem +
+                   "): it localizes, but the route follower refuses it";
+  if (res.success && lost.empty() && motion_problem.empty())
     NODELET_INFO("~finish: %s", res.message.c_str());
   else
     NODELET_WARN("~finish: %s", res.message.c_str());

@@ -154,8 +154,8 @@ void PreprocessorNodelet::connectCb()
   else if (!sub_ && transport_error_.empty())  // a missing transport plugin: only a new load tries again
   {
     std::string error;
-    sub_ = subscribeTransported(*it_, "image", static_cast<uint32_t>(queue_size_), &PreprocessorNodelet::imageCb, this,
-                           getPrivateNodeHandle(), &error);
+    sub_ = subscribeTransported(*it_, "image", static_cast<uint32_t>(queue_size_), &PreprocessorNodelet::imageCb,
+                                this, getPrivateNodeHandle(), &error);
     if (!error.empty())
       NODELET_ERROR("Images on %s: %s", image_topic_.c_str(), error.c_str());
     transport_error_ = error;
@@ -216,7 +216,8 @@ void PreprocessorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& 
   }
   if (!transport_error.empty())
   {
-    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "not subscribed to " + image_topic_ + ": " + transport_error);
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                 "not subscribed to " + image_topic_ + ": " + transport_error);
   }
   else if (images_in == 0)
   {
